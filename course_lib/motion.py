@@ -1,0 +1,141 @@
+"""The `Motion` container: one clip of skeletal motion and what derives from it.
+
+A Motion holds local joint rotations (T, J, 4) as unit quaternions (w, x, y, z),
+the root joint's world position (T, 3) in metres, its `Skeleton`, the frame
+rate, and optional labels.  Arrays are float64 numpy; `positions()` runs the
+torch forward kinematics of skeleton.py.
+
+Taught in notebooks/00_skeletons_and_rotations.ipynb.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import torch
+
+from course_lib.rotations import quat_slerp
+from course_lib.skeleton import Skeleton, forward_kinematics
+
+# Foot-contact thresholds (metres, metres/second), floor at y = 0.  A foot is in
+# contact when its ankle or its toe joint is both low and slow.  The heights sit
+# a few cm above the canonical rest heights (ankle 0.08 m, toe 0.025 m).
+CONTACT_HEIGHT = {"Foot": 0.12, "ToeBase": 0.05}
+CONTACT_SPEED = 0.3
+
+
+@dataclass(eq=False)
+class Motion:
+    """rotations (T, J, 4) local unit quaternions, root_positions (T, 3) metres, skeleton, fps."""
+
+    rotations: np.ndarray
+    root_positions: np.ndarray
+    skeleton: Skeleton
+    fps: float
+    action: str | None = None
+    style: str | None = None
+    subject: str | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.rotations = np.asarray(self.rotations, dtype=np.float64)
+        self.root_positions = np.asarray(self.root_positions, dtype=np.float64)
+        J = self.skeleton.num_joints
+        if self.rotations.ndim != 3 or self.rotations.shape[1:] != (J, 4):
+            raise ValueError(f"Motion: rotations must be (T, {J}, 4) for a {J}-joint skeleton, "
+                             f"got {self.rotations.shape}")
+        T = self.rotations.shape[0]
+        if self.root_positions.shape != (T, 3):
+            raise ValueError(f"Motion: root_positions must be ({T}, 3), got {self.root_positions.shape}")
+        if not (np.isfinite(self.rotations).all() and np.isfinite(self.root_positions).all()):
+            raise ValueError("Motion: rotations or root_positions contain NaN or inf")
+        norms = np.linalg.norm(self.rotations, axis=-1)
+        if T and np.abs(norms - 1).max() > 1e-3:
+            raise ValueError(f"Motion: rotations must be unit quaternions (norms range "
+                             f"{norms.min():.4f}..{norms.max():.4f})")
+        if not self.fps > 0:
+            raise ValueError(f"Motion: fps must be positive, got {self.fps}")
+        self.rotations = self.rotations / norms[..., None] if T else self.rotations
+
+    def __len__(self) -> int:
+        return self.rotations.shape[0]
+
+    @property
+    def num_frames(self) -> int:
+        return len(self)
+
+    @property
+    def duration(self) -> float:
+        """Seconds spanned by the frames."""
+        return (len(self) - 1) / self.fps
+
+    def __getitem__(self, frames) -> "Motion":
+        if isinstance(frames, int):
+            frames = slice(frames, frames + 1 if frames != -1 else None)
+        return replace(self, rotations=self.rotations[frames], root_positions=self.root_positions[frames],
+                       meta=dict(self.meta))
+
+    def _fk(self) -> tuple[torch.Tensor, torch.Tensor]:
+        return forward_kinematics(torch.from_numpy(self.rotations), torch.from_numpy(self.root_positions),
+                                  torch.from_numpy(self.skeleton.offsets), self.skeleton.parents)
+
+    def positions(self) -> np.ndarray:
+        """(T, J, 3) world joint positions, metres."""
+        return self._fk()[0].numpy()
+
+    def global_rotations(self) -> np.ndarray:
+        """(T, J, 4) world rotations of each joint."""
+        return self._fk()[1].numpy()
+
+    def contacts(self) -> np.ndarray:
+        """(T, 2) bool foot contacts (left, right), from joint heights and speeds; see CONTACT_*."""
+        return foot_contacts(self.positions(), self.skeleton, self.fps)
+
+    def resample(self, fps: float) -> "Motion":
+        """The same motion at another frame rate: slerp for rotations, linear for the root."""
+        if not fps > 0:
+            raise ValueError(f"resample: fps must be positive, got {fps}")
+        T = len(self)
+        n = int(np.floor(self.duration * fps + 1e-9)) + 1
+        t = np.arange(n) * (self.fps / fps)  # new frame times in old frame units
+        i0 = np.clip(np.floor(t).astype(int), 0, T - 1)
+        i1 = np.clip(i0 + 1, 0, T - 1)
+        a = t - i0
+        rot = torch.from_numpy(self.rotations)
+        q = quat_slerp(rot[i0], rot[i1], torch.from_numpy(a)[:, None].expand(n, rot.shape[1]))
+        root = (1 - a)[:, None] * self.root_positions[i0] + a[:, None] * self.root_positions[i1]
+        return replace(self, rotations=q.numpy(), root_positions=root, fps=float(fps), meta=dict(self.meta))
+
+    def mirror(self) -> "Motion":
+        """Left-right mirror image (reflection x -> -x); exact for a symmetric skeleton."""
+        m = list(self.skeleton.mirror_map)
+        # Reflecting space by diag(-1, 1, 1) maps a rotation (w, x, y, z) to (w, x, -y, -z).
+        rot = self.rotations[:, m] * np.array([1.0, 1.0, -1.0, -1.0])
+        root = self.root_positions * np.array([-1.0, 1.0, 1.0])
+        return replace(self, rotations=rot, root_positions=root, meta=dict(self.meta, mirrored=True))
+
+    def __repr__(self) -> str:
+        labels = ", ".join(f"{k}={v!r}" for k, v in
+                           (("action", self.action), ("style", self.style), ("subject", self.subject)) if v)
+        return f"Motion({len(self)} frames @ {self.fps:g} fps, {self.skeleton.num_joints} joints{', ' + labels if labels else ''})"
+
+
+def foot_contacts(positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
+    """positions (..., T, J, 3) -> (..., T, 2) bool contacts (left, right).
+
+    A foot touches the floor on a frame where its ankle (`Foot`) or toe joint
+    (`ToeBase`) is below CONTACT_HEIGHT and moves slower than CONTACT_SPEED
+    (central differences; one-sided at the ends).
+    """
+    positions = np.asarray(positions)
+    vel = np.gradient(positions, axis=-3) * fps if positions.shape[-3] > 1 else np.zeros_like(positions)
+    speed = np.linalg.norm(vel, axis=-1)  # (..., T, J)
+    out = []
+    for side in ("Left", "Right"):
+        touch = np.zeros(positions.shape[:-2], dtype=bool)
+        for part, h in CONTACT_HEIGHT.items():
+            j = skeleton.index(side + part)
+            touch |= (positions[..., j, 1] < h) & (speed[..., j] < CONTACT_SPEED)
+        out.append(touch)
+    return np.stack(out, -1)

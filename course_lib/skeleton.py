@@ -1,0 +1,161 @@
+"""Skeletons and forward kinematics.
+
+A `Skeleton` is a tree of joints: names, a parents array (parent index before
+child, root first with parent -1), rest offsets of each joint from its parent
+in metres, and End Site offsets (BVH's end effectors, not joints).
+
+The canonical skeleton of the course has 21 CMU-like joints; Y is up and the
+character faces +Z at rest, so its left side is +X.  Rest pose: standing
+straight, arms stretched sideways (T-pose, as in CMU files).
+
+Taught in notebooks/00_skeletons_and_rotations.ipynb.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from course_lib.rotations import quat_mul, quat_rotate
+
+CANONICAL_JOINTS = (
+    "Hips",
+    "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase",
+    "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase",
+    "Spine", "Spine1", "Neck", "Head",
+    "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand",
+    "RightShoulder", "RightArm", "RightForeArm", "RightHand",
+)
+CANONICAL_PARENTS = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 10, 13, 14, 15, 10, 17, 18, 19)
+
+# Rest offsets (metres) of an adult about 1.75 m tall; hips 0.96 m above the floor,
+# ankles 0.08 m, toe joints (ball of the foot) 0.025 m.
+_CANONICAL_OFFSETS = (
+    (0.0, 0.0, 0.0),
+    (0.09, -0.055, 0.0), (0.0, -0.415, 0.0), (0.0, -0.41, 0.0), (0.0, -0.055, 0.13),
+    (-0.09, -0.055, 0.0), (0.0, -0.415, 0.0), (0.0, -0.41, 0.0), (0.0, -0.055, 0.13),
+    (0.0, 0.11, 0.0), (0.0, 0.19, 0.0), (0.0, 0.21, 0.0), (0.0, 0.10, 0.02),
+    (0.035, 0.17, 0.0), (0.14, 0.0, 0.0), (0.28, 0.0, 0.0), (0.25, 0.0, 0.0),
+    (-0.035, 0.17, 0.0), (-0.14, 0.0, 0.0), (-0.28, 0.0, 0.0), (-0.25, 0.0, 0.0),
+)
+_CANONICAL_END_SITES = {
+    "LeftToeBase": (0.0, 0.0, 0.06), "RightToeBase": (0.0, 0.0, 0.06),
+    "Head": (0.0, 0.12, 0.0), "LeftHand": (0.09, 0.0, 0.0), "RightHand": (-0.09, 0.0, 0.0),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Skeleton:
+    """names (J,), parents (J,) with parents[j] < j, offsets (J, 3) metres, end_sites {joint: (3,)}."""
+
+    names: tuple[str, ...]
+    parents: tuple[int, ...]
+    offsets: np.ndarray
+    end_sites: dict[int, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self):
+        offsets = np.asarray(self.offsets, dtype=np.float64)
+        J = len(self.names)
+        if offsets.shape != (J, 3):
+            raise ValueError(f"Skeleton: offsets must be ({J}, 3) for {J} joints, got {offsets.shape}")
+        if len(self.parents) != J:
+            raise ValueError(f"Skeleton: {len(self.parents)} parents for {J} joints")
+        if self.parents[0] != -1 or any(not (0 <= p < j) for j, p in enumerate(self.parents) if j):
+            raise ValueError("Skeleton: parents must list the root first (-1) and each parent before its child")
+        if not np.isfinite(offsets).all():
+            raise ValueError("Skeleton: offsets contain NaN or inf")
+        if len(set(self.names)) != J:
+            raise ValueError("Skeleton: joint names must be unique")
+        object.__setattr__(self, "names", tuple(self.names))
+        object.__setattr__(self, "parents", tuple(int(p) for p in self.parents))
+        object.__setattr__(self, "offsets", offsets)
+        object.__setattr__(self, "end_sites", {int(k): np.asarray(v, np.float64) for k, v in self.end_sites.items()})
+
+    @classmethod
+    def canonical(cls) -> "Skeleton":
+        """The course's 21-joint skeleton."""
+        idx = {n: i for i, n in enumerate(CANONICAL_JOINTS)}
+        ends = {idx[n]: np.array(v) for n, v in _CANONICAL_END_SITES.items()}
+        return cls(CANONICAL_JOINTS, CANONICAL_PARENTS, np.array(_CANONICAL_OFFSETS), ends)
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"Skeleton has no joint named {name!r}; joints: {', '.join(self.names)}") from None
+
+    def children(self, j: int) -> list[int]:
+        return [c for c, p in enumerate(self.parents) if p == j]
+
+    def bone_lengths(self) -> np.ndarray:
+        """(J,) length of the bone from each joint's parent to it (0 for the root)."""
+        return np.linalg.norm(self.offsets, axis=-1)
+
+    @property
+    def mirror_map(self) -> tuple[int, ...]:
+        """(J,) index of each joint's left/right counterpart (itself on the midline)."""
+        def swap(n: str) -> str:
+            if n.startswith("Left"):
+                return "Right" + n[4:]
+            if n.startswith("Right"):
+                return "Left" + n[5:]
+            return n
+        return tuple(self.names.index(swap(n)) if swap(n) in self.names else j
+                     for j, n in enumerate(self.names))
+
+    @property
+    def end_effectors(self) -> tuple[int, ...]:
+        """Joints with no children (feet's toes, hands, head)."""
+        return tuple(j for j in range(self.num_joints) if not self.children(j))
+
+    @property
+    def feet(self) -> tuple[int, int, int, int]:
+        """(LeftFoot, LeftToeBase, RightFoot, RightToeBase) indices."""
+        return tuple(self.index(n) for n in ("LeftFoot", "LeftToeBase", "RightFoot", "RightToeBase"))
+
+    def scaled(self, factors: float | np.ndarray) -> "Skeleton":
+        """A skeleton with each bone scaled: a float, or (J,) per-joint factors."""
+        f = np.broadcast_to(np.asarray(factors, np.float64), (self.num_joints,))
+        ends = {j: v * f[j] for j, v in self.end_sites.items()}
+        return Skeleton(self.names, self.parents, self.offsets * f[:, None], ends)
+
+    def fk(self, rotations, root_positions) -> torch.Tensor:
+        """Positions of this skeleton's joints, see `forward_kinematics`."""
+        rot = torch.as_tensor(rotations)
+        off = torch.as_tensor(self.offsets, dtype=rot.dtype)
+        return forward_kinematics(rot, torch.as_tensor(root_positions, dtype=rot.dtype), off, self.parents)[0]
+
+    def __repr__(self) -> str:
+        return f"Skeleton({self.num_joints} joints, root {self.names[0]!r})"
+
+
+def forward_kinematics(
+    rotations: torch.Tensor, root_positions: torch.Tensor, offsets: torch.Tensor, parents
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Local joint rotations -> world joint positions and global rotations.
+
+    rotations: (..., J, 4) local unit quaternions; root_positions: (..., 3) world
+    position of joint 0; offsets: (J, 3) or (..., J, 3) rest offsets; parents: (J,)
+    -> positions (..., J, 3), global rotations (..., J, 4).
+    """
+    J = len(parents)
+    if rotations.shape[-2:] != (J, 4):
+        raise ValueError(f"forward_kinematics: rotations must be (..., {J}, 4), got {tuple(rotations.shape)}")
+    if root_positions.shape[-1] != 3 or root_positions.shape[:-1] != rotations.shape[:-2]:
+        raise ValueError(f"forward_kinematics: root_positions must be {tuple(rotations.shape[:-2]) + (3,)}, "
+                         f"got {tuple(root_positions.shape)}")
+    offsets = offsets.expand(*rotations.shape[:-2], J, 3)
+    glob = [rotations[..., 0, :]]
+    pos = [root_positions]
+    for j in range(1, J):
+        p = parents[j]
+        # x_j = x_p + R_p o_j ;  R_j = R_p r_j
+        pos.append(pos[p] + quat_rotate(glob[p], offsets[..., j, :]))
+        glob.append(quat_mul(glob[p], rotations[..., j, :]))
+    return torch.stack(pos, -2), torch.stack(glob, -2)
