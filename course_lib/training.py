@@ -1,0 +1,395 @@
+"""One training loop for every model in the course, and reproducible checkpoints.
+
+Taught in notebooks/01_vae_basics.ipynb and used by every later lesson.
+
+The trainer knows nothing about any model (minGPT's trainer): it only calls
+``model.loss(batch) -> dict`` whose ``"loss"`` entry is minimised; every other
+entry (scalars or small vectors such as a KL per latent dimension) is logged in
+a :class:`History`.  Checkpoints are ``state_dict`` + JSON config + course_lib
+version, hashed with sha256 and listed in ``checkpoints/MANIFEST.json`` together
+with the one command that reproduces them; they are always loaded with
+``torch.load(..., weights_only=True)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import random
+import tempfile
+import time
+import typing
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from . import __version__
+
+__all__ = [
+    "History",
+    "fit",
+    "load_checkpoint",
+    "make_optimizer",
+    "save_checkpoint",
+    "seed_everything",
+    "sha256_file",
+]
+
+
+# ----------------------------------------------------------------------------- seeding
+
+
+def seed_everything(seed: int) -> torch.Generator:
+    """Seed Python, NumPy and torch's global generators; return a fresh torch.Generator seeded alike."""
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
+        raise TypeError(f"seed must be an int, got {type(seed).__name__}")
+    random.seed(int(seed))
+    np.random.seed(int(seed) % 2**32)
+    torch.manual_seed(int(seed))
+    return torch.Generator().manual_seed(int(seed))
+
+
+# ----------------------------------------------------------------------------- history
+
+
+class History:
+    """Every logged loss term, per optimiser step and per epoch (epoch = mean of its steps).
+
+    ``history.step["loss"]`` is a list with one float per step; vector terms (e.g. ``kl_per_dim``)
+    are stored as 1-D numpy arrays.  ``history.epoch[...]`` holds the epoch means, ``history.lr``
+    the learning rate of each step and ``history.seconds`` the wall time of the run.
+    """
+
+    def __init__(self) -> None:
+        self.step: dict[str, list] = {}
+        self.epoch: dict[str, list] = {}
+        self.lr: list[float] = []
+        self.seconds: float = 0.0
+        self._epoch_buffer: dict[str, list] = {}
+
+    def log_step(self, logs: dict[str, float | np.ndarray]) -> None:
+        for key, value in logs.items():
+            self.step.setdefault(key, []).append(value)
+            self._epoch_buffer.setdefault(key, []).append(value)
+
+    def end_epoch(self) -> None:
+        for key, values in self._epoch_buffer.items():
+            mean = np.mean(np.stack([np.asarray(v, dtype=np.float64) for v in values]), axis=0)
+            self.epoch.setdefault(key, []).append(float(mean) if mean.ndim == 0 else mean)
+        self._epoch_buffer = {}
+
+    @property
+    def num_steps(self) -> int:
+        return len(self.step.get("loss", []))
+
+    def scalar_keys(self) -> list[str]:
+        """The keys whose values are scalars (the ones :meth:`plot` draws)."""
+        return [k for k, v in self.step.items() if v and np.ndim(v[0]) == 0]
+
+    def final(self, key: str = "loss", window: int = 1) -> float:
+        """Mean of the last ``window`` step values of ``key``."""
+        if key not in self.step:
+            raise KeyError(f"{key!r} was never logged; logged keys: {sorted(self.step)}")
+        return float(np.mean(self.step[key][-window:]))
+
+    def plot(self, ax=None, keys: Iterable[str] | None = None, per: str = "step", logy: bool = False):
+        """Plot the scalar loss terms against steps (``per="step"``) or epochs; returns the axes."""
+        import matplotlib.pyplot as plt  # imported lazily: no matplotlib cost for headless training
+
+        if per not in ("step", "epoch"):
+            raise ValueError(f"per must be 'step' or 'epoch', got {per!r}")
+        table = self.step if per == "step" else self.epoch
+        keys = list(keys) if keys is not None else self.scalar_keys()
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6, 3.5))
+        for key in keys:
+            if key not in table:
+                raise KeyError(f"{key!r} was never logged; logged keys: {sorted(table)}")
+            ax.plot(np.arange(1, len(table[key]) + 1), table[key], label=key)
+        ax.set_xlabel(per)
+        ax.set_ylabel("value")
+        if logy:
+            ax.set_yscale("log")
+        ax.legend(fontsize="small")
+        ax.grid(alpha=0.3)
+        return ax
+
+    def __repr__(self) -> str:
+        last = ", ".join(f"{k}={self.final(k):.4g}" for k in self.scalar_keys())
+        return f"History(steps={self.num_steps}, epochs={len(self.epoch.get('loss', []))}, {last})"
+
+
+# ----------------------------------------------------------------------------- fit
+
+
+def make_optimizer(params, optimizer: str | Callable = "adam", lr: float = 1e-3,
+                   weight_decay: float = 0.0) -> torch.optim.Optimizer:
+    """'adam' | 'rmsprop' | 'sgd' | callable(params, lr) -> torch.optim.Optimizer."""
+    if callable(optimizer):
+        return optimizer(params, lr)
+    table = {"adam": torch.optim.Adam, "rmsprop": torch.optim.RMSprop, "sgd": torch.optim.SGD}
+    if optimizer not in table:
+        raise ValueError(f"optimizer must be one of {sorted(table)} or a callable, got {optimizer!r}")
+    return table[optimizer](params, lr=lr, weight_decay=weight_decay)
+
+
+def _batches(data, steps_per_epoch: int | None):
+    """Yield epochs, each an iterator of batches, from a DataLoader/iterable or a batch-making callable."""
+    if callable(data) and not hasattr(data, "__iter__"):
+        if steps_per_epoch is None:
+            raise ValueError("data is a callable: pass steps_per_epoch (the calls that make one epoch)")
+        while True:
+            yield (data() for _ in range(steps_per_epoch))
+    elif hasattr(data, "__iter__"):
+        if iter(data) is data:  # a one-shot iterator/generator: one single (possibly endless) epoch
+            yield data
+            return
+        while True:
+            yield iter(data)
+    else:
+        raise TypeError(f"data must be a DataLoader, an iterable of batches or a callable, got {type(data).__name__}")
+
+
+def _to_logs(out: dict, step: int) -> dict[str, float | np.ndarray]:
+    """Detach a loss dict into floats / numpy arrays; raise on a missing or non-finite 'loss'."""
+    if not isinstance(out, dict) or "loss" not in out:
+        raise KeyError(f"model.loss(batch) must return a dict with key 'loss', got {type(out).__name__}"
+                       + (f" with keys {sorted(out)}" if isinstance(out, dict) else ""))
+    if out["loss"].ndim != 0:
+        raise ValueError(f"out['loss'] must be a scalar tensor, got shape {tuple(out['loss'].shape)}")
+    if not torch.isfinite(out["loss"]):
+        raise FloatingPointError(f"non-finite loss {out['loss'].item()} at step {step}")
+    logs = {}
+    for key, value in out.items():
+        if torch.is_tensor(value):
+            value = value.detach().double().cpu()
+            logs[key] = value.item() if value.ndim == 0 else value.numpy()
+        elif isinstance(value, (int, float, np.floating)):
+            logs[key] = float(value)
+    return logs
+
+
+@dataclasses.dataclass
+class StepInfo:
+    """What a ``fit`` callback sees after each optimiser step; return True from the callback to stop."""
+
+    step: int
+    epoch: int
+    logs: dict
+    model: torch.nn.Module
+    optimizer: torch.optim.Optimizer
+    history: History
+
+
+def fit(model: torch.nn.Module, data, *, steps: int | None = None, epochs: int | None = None,
+        lr: float = 1e-3, optimizer: str | Callable = "adam", weight_decay: float = 0.0,
+        grad_clip: float | None = None, lr_schedule: Callable[[int], float] | None = None,
+        steps_per_epoch: int | None = None, callback: Callable[[StepInfo], bool | None] | None = None,
+        progress: bool = True, seed: int | None = None, desc: str = "fit") -> History:
+    """Minimise ``model.loss(batch)["loss"]`` over ``data``; return the :class:`History`.
+
+    data: a DataLoader / re-iterable of batches (one pass = one epoch), a one-shot iterator,
+    or a callable returning a batch (``steps_per_epoch`` calls = one epoch).  Stops after
+    ``steps`` optimiser steps or ``epochs`` epochs, whichever comes first (give at least one).
+    lr_schedule: epoch -> factor multiplying ``lr`` (epochs counted from 0).
+    grad_clip: max global L2 norm of the gradients (the pre-clip norm is logged as 'grad_norm').
+    """
+    if steps is None and epochs is None:
+        raise ValueError("fit needs steps= or epochs= (or both; it stops at whichever comes first)")
+    if seed is not None:
+        seed_everything(seed)
+    params = [p for p in model.parameters() if p.requires_grad]
+    if not params:
+        raise ValueError("model has no trainable parameters")
+    opt = make_optimizer(params, optimizer, lr, weight_decay)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lr_schedule) if lr_schedule is not None else None
+    history, step, was_training, t0 = History(), 0, model.training, time.perf_counter()
+    total = steps if steps is not None else (epochs * steps_per_epoch if steps_per_epoch else None)
+    bar, stop = _progress(total, progress, desc), False
+    model.train()
+    try:
+        for epoch, batches in enumerate(_batches(data, steps_per_epoch)):
+            if epochs is not None and epoch >= epochs:
+                break
+            for batch in batches:
+                logs = _train_step(model, opt, batch, grad_clip, step)
+                step += 1
+                logs["lr"] = opt.param_groups[0]["lr"]
+                history.log_step(logs)
+                bar.update(1)
+                bar.set_postfix(loss=f"{logs['loss']:.4g}", refresh=False)
+                stop = callback(StepInfo(step, epoch, logs, model, opt, history)) if callback else False
+                if stop or (steps is not None and step >= steps):
+                    break
+            history.end_epoch()
+            if stop or (steps is not None and step >= steps):
+                break
+            if sched is not None:
+                sched.step()
+    finally:
+        bar.close()
+        model.train(was_training)
+    history.lr = list(history.step.get("lr", []))
+    history.seconds = time.perf_counter() - t0
+    return history
+
+
+def _train_step(model, opt, batch, grad_clip, step) -> dict:
+    """One optimiser step on one batch; returns the detached logs."""
+    opt.zero_grad(set_to_none=True)
+    out = model.loss(batch)
+    logs = _to_logs(out, step)
+    out["loss"].backward()
+    params = [p for group in opt.param_groups for p in group["params"] if p.grad is not None]
+    # the global norm before clipping, logged so students can see exploding gradients
+    norm = torch.nn.utils.clip_grad_norm_(params, grad_clip if grad_clip is not None else float("inf"))
+    logs["grad_norm"] = float(norm)
+    opt.step()
+    return logs
+
+
+def _progress(total, progress, desc):
+    from tqdm.auto import tqdm
+
+    disabled = not progress or os.environ.get("TQDM_DISABLE", "").strip().lower() not in ("", "0", "false")
+    return tqdm(total=total, disable=disabled, desc=desc, leave=False)
+
+
+# ----------------------------------------------------------------------------- checkpoints
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """Hex sha256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _manifest_path(path: Path, manifest: str | os.PathLike | None) -> Path:
+    return Path(manifest) if manifest is not None else path.parent / "MANIFEST.json"
+
+
+def _entry_name(path: Path, manifest_path: Path) -> str:
+    """The manifest key of a checkpoint: its path relative to the manifest's folder, without suffix."""
+    try:
+        rel = path.resolve().relative_to(manifest_path.resolve().parent)
+    except ValueError:
+        rel = Path(path.name)
+    return rel.with_suffix("").as_posix()
+
+
+def _jsonable(x):
+    """Turn tuples, numpy and torch scalars into plain JSON types."""
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.generic, torch.Tensor)):
+        return x.item()
+    return x
+
+
+def _update_manifest(manifest_path: Path, name: str, entry: dict) -> None:
+    """Read-modify-write MANIFEST.json under an exclusive lock (several helpers may write at once)."""
+    manifest_path.parent.mkdir(parents=True, exist_ok=True)
+    # the lock file lives in the temp dir so that no stray file appears next to the checkpoints
+    key = hashlib.sha256(str(manifest_path.resolve()).encode()).hexdigest()[:16]
+    lock = open(Path(tempfile.gettempdir()) / f"course_lib_manifest_{key}.lock", "w")
+    try:
+        try:
+            import fcntl
+
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        except ImportError:  # Windows: no advisory locks; single-writer use is fine
+            pass
+        table = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+        table[name] = entry
+        tmp = manifest_path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(dict(sorted(table.items())), indent=2) + "\n")
+        os.replace(tmp, manifest_path)
+    finally:
+        lock.close()
+
+
+def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, command: str,
+                    metrics: dict | None = None, overwrite: bool = False,
+                    manifest: str | os.PathLike | None = None) -> dict:
+    """Write ``{state_dict, config JSON, course_lib version}`` to ``path`` and record it in the manifest.
+
+    config: the model's config dataclass.  command: the one shell command that reproduces this file.
+    manifest: defaults to ``MANIFEST.json`` next to ``path``.  Returns the manifest entry.
+    """
+    path = Path(path)
+    if not dataclasses.is_dataclass(config) or isinstance(config, type):
+        raise TypeError(f"config must be a dataclass instance, got {type(config).__name__}")
+    if not command or not isinstance(command, str):
+        raise ValueError("command must be the shell command that reproduces this checkpoint")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
+    config_dict = _jsonable(dataclasses.asdict(config))
+    payload = {
+        "state_dict": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
+        "config_json": json.dumps(config_dict, sort_keys=True),
+        "config_class": type(config).__name__,
+        "model_class": type(model).__name__,
+        "course_lib_version": __version__,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(payload, path)
+    mpath = _manifest_path(path, manifest)
+    entry = {
+        "file": os.path.relpath(path.resolve(), mpath.resolve().parent).replace(os.sep, "/"),
+        "sha256": sha256_file(path), "bytes": path.stat().st_size, "config": config_dict,
+        "model_class": type(model).__name__, "command": command, "course_lib_version": __version__,
+        "metrics": _jsonable(metrics or {}),
+    }
+    _update_manifest(mpath, _entry_name(path, mpath), entry)
+    return entry
+
+
+def _config_from_dict(config_cls, values: dict):
+    """Rebuild a config dataclass from JSON, turning lists back into tuples where the field is a tuple."""
+    fields = {f.name: f for f in dataclasses.fields(config_cls)}
+    unknown = set(values) - set(fields)
+    if unknown:
+        raise ValueError(f"checkpoint config has fields {sorted(unknown)} unknown to {config_cls.__name__}")
+    hints = typing.get_type_hints(config_cls)
+    kwargs = {}
+    for name, value in values.items():
+        hint = str(hints.get(name, ""))
+        is_tuple = "tuple" in hint.lower() or isinstance(fields[name].default, tuple)
+        kwargs[name] = tuple(value) if is_tuple and isinstance(value, list) else value
+    return config_cls(**kwargs)
+
+
+def load_checkpoint(path: str | os.PathLike, model_cls, config_cls, *, manifest: str | os.PathLike | None = None,
+                    verify: bool = True) -> torch.nn.Module:
+    """Rebuild ``model_cls(config_cls(**config))`` from ``path`` and load its weights (eval mode).
+
+    The file is loaded with ``torch.load(weights_only=True)``.  If the manifest (default: next to
+    the file) lists it, its sha256 must match, else a ValueError names the command that rebuilds it.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"checkpoint {path} not found")
+    mpath = _manifest_path(path, manifest)
+    if verify and mpath.exists():
+        entry = json.loads(mpath.read_text()).get(_entry_name(path, mpath))
+        if entry is not None:
+            actual = sha256_file(path)
+            if actual != entry["sha256"]:
+                raise ValueError(f"sha256 mismatch for {path}: manifest {entry['sha256'][:12]}..., file "
+                                 f"{actual[:12]}...; the file is corrupt or stale. Rebuild it with: {entry['command']}")
+    payload = torch.load(path, map_location="cpu", weights_only=True)
+    if payload.get("config_class") not in (None, config_cls.__name__):
+        raise TypeError(f"{path} holds a {payload['config_class']}, not a {config_cls.__name__}")
+    config = _config_from_dict(config_cls, json.loads(payload["config_json"]))
+    model = model_cls(config)
+    model.load_state_dict(payload["state_dict"], strict=True)
+    return model.eval()

@@ -1,0 +1,198 @@
+"""Tests of course_lib.training: the fit loop, seeding, clipping, checkpoints and the manifest."""
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.training import History, fit, load_checkpoint, save_checkpoint, seed_everything, sha256_file
+
+
+@dataclass
+class TinyConfig:
+    d_in: int = 3  # input features
+    hidden: tuple = (8,)  # hidden widths (a tuple, to test JSON round trip)
+
+
+class TinyRegressor(torch.nn.Module):
+    """y = MLP(x); loss is the mean squared error plus a logged auxiliary term."""
+
+    def __init__(self, config: TinyConfig):
+        super().__init__()
+        self.config = config
+        self.net = torch.nn.Sequential(torch.nn.Linear(config.d_in, config.hidden[0]), torch.nn.Tanh(),
+                                       torch.nn.Linear(config.hidden[0], 1))
+
+    def forward(self, x):
+        return self.net(x)
+
+    def loss(self, batch):
+        x, y = batch
+        mse = ((self(x) - y) ** 2).mean()
+        return {"loss": mse, "abs": (self(x) - y).abs().mean(), "vec": torch.stack([mse, 2 * mse])}
+
+
+def _data(n=256, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    x = torch.randn(n, 3, generator=g)
+    y = (x @ torch.tensor([[1.0], [-2.0], [0.5]])) + 0.3
+    return x, y
+
+
+def _loader(seed=0):
+    x, y = _data(seed=seed)
+    ds = torch.utils.data.TensorDataset(x, y)
+    return torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True, generator=torch.Generator().manual_seed(1))
+
+
+def test_fit_drives_regression_loss_down():
+    seed_everything(0)
+    model = TinyRegressor(TinyConfig())
+    hist = fit(model, _loader(), epochs=40, lr=1e-2, progress=False)
+    assert isinstance(hist, History)
+    assert hist.num_steps == 40 * 8
+    assert len(hist.epoch["loss"]) == 40
+    assert hist.final("loss", 8) < hist.step["loss"][0] / 10
+    assert hist.step["vec"][0].shape == (2,)
+    assert "abs" in hist.scalar_keys() and "vec" not in hist.scalar_keys()
+
+
+def test_callable_data_and_steps_and_rmsprop():
+    x, y = _data()
+    g = torch.Generator().manual_seed(3)
+
+    def batch():
+        idx = torch.randint(0, len(x), (32,), generator=g)
+        return x[idx], y[idx]
+
+    model = TinyRegressor(TinyConfig())
+    hist = fit(model, batch, steps=150, steps_per_epoch=50, optimizer="rmsprop", lr=3e-3, progress=False, seed=0)
+    assert hist.num_steps == 150 and len(hist.epoch["loss"]) == 3
+    assert hist.final("loss", 10) < hist.step["loss"][0] / 10
+
+
+def test_seed_gives_identical_histories():
+    runs = []
+    for _ in range(2):
+        seed_everything(5)
+        model = TinyRegressor(TinyConfig())
+        runs.append(fit(model, _loader(), epochs=3, lr=1e-2, progress=False, seed=7).step["loss"])
+    assert runs[0] == runs[1]
+    seed_everything(6)
+    other = fit(TinyRegressor(TinyConfig()), _loader(), epochs=3, lr=1e-2, progress=False, seed=8).step["loss"]
+    assert other != runs[0]
+
+
+def test_grad_clipping_bounds_the_update():
+    seed_everything(0)
+    model = TinyRegressor(TinyConfig())
+
+    class Huge(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.inner = model
+
+        def loss(self, batch):
+            return {"loss": 1e4 * self.inner.loss(batch)["loss"]}
+
+    before = torch.nn.utils.parameters_to_vector(model.parameters()).detach().clone()
+    norms = []
+
+    def check(info):
+        grads = [p.grad for p in info.model.parameters() if p.grad is not None]
+        norms.append(torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads])).item())
+
+    hist = fit(Huge(), _loader(), steps=1, lr=1.0, grad_clip=0.1, progress=False, callback=check,
+               optimizer=lambda p, lr: torch.optim.SGD(p, lr=lr))
+    after = torch.nn.utils.parameters_to_vector(model.parameters()).detach()
+    assert hist.step["grad_norm"][0] > 100  # the raw gradient is large ...
+    assert norms[0] == pytest.approx(0.1, rel=1e-4)  # ... clipped to 0.1
+    assert torch.linalg.vector_norm(after - before).item() == pytest.approx(0.1, rel=1e-4)
+
+
+def test_lr_schedule_and_callback_stop():
+    model = TinyRegressor(TinyConfig())
+    hist = fit(model, _loader(), epochs=4, lr=1e-2, lr_schedule=lambda e: 0.5**e, progress=False,
+               callback=lambda info: info.step >= 20)
+    assert hist.num_steps == 20
+    assert hist.lr[0] == pytest.approx(1e-2) and hist.lr[8] == pytest.approx(5e-3) and hist.lr[19] == pytest.approx(
+        2.5e-3)
+
+
+def test_fit_errors_are_clear():
+    model = TinyRegressor(TinyConfig())
+    with pytest.raises(ValueError, match="steps= or epochs="):
+        fit(model, _loader(), progress=False)
+
+    class NaNModel(TinyRegressor):
+        def loss(self, batch):
+            return {"loss": self(batch[0]).mean() * float("nan")}
+
+    with pytest.raises(FloatingPointError, match="step 0"):
+        fit(NaNModel(TinyConfig()), _loader(), steps=2, progress=False)
+
+    class NoLoss(TinyRegressor):
+        def loss(self, batch):
+            return {"mse": self(batch[0]).mean()}
+
+    with pytest.raises(KeyError, match="'loss'"):
+        fit(NoLoss(TinyConfig()), _loader(), steps=2, progress=False)
+
+
+def test_checkpoint_round_trip_identical_outputs(tmp_path):
+    seed_everything(0)
+    config = TinyConfig(d_in=3, hidden=(16,))
+    model = TinyRegressor(config)
+    fit(model, _loader(), steps=20, progress=False)
+    path = tmp_path / "tiny.pt"
+    entry = save_checkpoint(model, config, path, command="python -m tiny", metrics={"mse": np.float32(0.25)})
+    manifest = json.loads((tmp_path / "MANIFEST.json").read_text())
+    assert manifest["tiny"]["sha256"] == sha256_file(path) == entry["sha256"]
+    assert manifest["tiny"]["file"] == "tiny.pt" and manifest["tiny"]["bytes"] == path.stat().st_size
+    assert manifest["tiny"]["config"] == {"d_in": 3, "hidden": [16]}
+    assert manifest["tiny"]["metrics"] == {"mse": 0.25} and manifest["tiny"]["command"] == "python -m tiny"
+    loaded = load_checkpoint(path, TinyRegressor, TinyConfig)
+    assert loaded.config == config and not loaded.training
+    x = torch.randn(5, 3)
+    assert torch.equal(loaded(x), model(x))
+
+
+def test_checkpoint_is_weights_only_loadable(tmp_path):
+    model = TinyRegressor(TinyConfig())
+    save_checkpoint(model, TinyConfig(), tmp_path / "w.pt", command="make w")
+    payload = torch.load(tmp_path / "w.pt", weights_only=True)
+    assert set(payload) >= {"state_dict", "config_json", "course_lib_version"}
+    assert json.loads(payload["config_json"]) == {"d_in": 3, "hidden": [8]}
+
+
+def test_refuses_overwrite_and_detects_tampering(tmp_path):
+    model = TinyRegressor(TinyConfig())
+    path = tmp_path / "a.pt"
+    save_checkpoint(model, TinyConfig(), path, command="make a")
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        save_checkpoint(model, TinyConfig(), path, command="make a")
+    save_checkpoint(model, TinyConfig(), tmp_path / "b.pt", command="make b")
+    assert set(json.loads((tmp_path / "MANIFEST.json").read_text())) == {"a", "b"}
+    with open(path, "ab") as f:
+        f.write(b"junk")
+    with pytest.raises(ValueError, match="sha256 mismatch.*make a"):
+        load_checkpoint(path, TinyRegressor, TinyConfig)
+    save_checkpoint(model, TinyConfig(), path, command="make a", overwrite=True)
+    assert isinstance(load_checkpoint(path, TinyRegressor, TinyConfig), TinyRegressor)
+
+
+def test_history_plot_and_epoch_means():
+    h = History()
+    h.log_step({"loss": 1.0, "v": np.array([1.0, 2.0])})
+    h.log_step({"loss": 3.0, "v": np.array([3.0, 4.0])})
+    h.end_epoch()
+    assert h.epoch["loss"] == [2.0] and np.allclose(h.epoch["v"][0], [2.0, 3.0])
+    import matplotlib
+
+    matplotlib.use("Agg")
+    ax = h.plot()
+    assert len(ax.lines) == 1
+    with pytest.raises(KeyError, match="never logged"):
+        h.plot(keys=["nope"])
