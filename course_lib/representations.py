@@ -1,0 +1,290 @@
+"""Feature representations of a `Motion`, each invertible: Motion -> (T, D) features -> Motion / positions.
+
+Three representations, one per family of papers (see DESIGN.md):
+
+- ``positions_control`` (Habibie et al. 2017, paper A; MoGlow, paper D):
+  21 joint positions in the character's floor frame (63) + control (3):
+  forward velocity, sideways velocity (m/s), yaw rate (rad/s).  Positions only,
+  so it decodes to joint positions (T, J, 3), not to rotations.
+- ``state_features`` (Wang, Chai et al. 2021, paper B, eq. 3): dx, dz, dyaw
+  (root displacement and heading change per frame in the previous frame's
+  floor frame), root height, root pitch and roll, the 20 non-root joints'
+  local rotations as expmaps (60), 2 foot-contact bits (68 for 21 joints).
+  Decodes with the global-transform integration of eq. 4.
+- ``quaternion_root`` (Ghorbani et al. 2020, paper C): the 21 local
+  quaternions (84; the root's with its heading removed) + 6 root features:
+  forward velocity, sideways velocity (m/s), root height, yaw rate (rad/s),
+  pitch, roll (90 for 21 joints).
+
+Conventions, stated once:
+
+- Heading (yaw) of the character: the Hips' forward axis (+Z) rotated by the
+  root rotation and projected on the floor, ``yaw = atan2(f_x, f_z)``; facing
+  +X is yaw = +pi/2.  The root rotation splits exactly as
+  ``R_y(yaw) R_x(pitch) R_z(roll)`` (intrinsic Euler 'YXZ' of rotations.py), so
+  pitch and roll are the root's tilt relative to the heading frame.  (Holden et
+  al. take the heading from the hip/shoulder across vectors instead; the Hips'
+  forward axis gives the same direction up to the pelvis' own yaw sway, and
+  makes the split exact.)
+- Floor frame of frame t: origin at the root's floor projection (x_t, 0, z_t),
+  axes rotated by yaw_t: local +Z is forward, local +X the character's left.
+- Root motion is the displacement from frame t-1 to frame t expressed in the
+  floor frame of frame t-1, and yaw_t - yaw_{t-1} wrapped to [-pi, pi)
+  (Wang eq. 4: M_t = M_{t-1} M_t,local).  Frame 0 has no predecessor: it
+  repeats frame 1's value, and decoding ignores it; the decoders start from
+  ``init = (x0, z0, yaw0)``, the first frame's floor transform (`root_start`).
+  Velocities are per second (displacement x fps) in positions_control and
+  quaternion_root, per frame in state_features (as in the paper).
+
+Every encoder returns float64; round trips reproduce joint positions to
+float64 precision (tests/test_representations.py checks 1e-4 m).
+
+Taught in notebooks/00_data_and_skeletons.ipynb.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from course_lib.motion import Motion, foot_contacts
+from course_lib.rotations import euler_to_quat, expmap_to_quat, quat_canonical, quat_to_euler, quat_to_expmap
+from course_lib.skeleton import Skeleton
+
+REPRESENTATIONS = ("positions_control", "state_features", "quaternion_root")
+CONTROL_NAMES = ("vel_forward", "vel_sideways", "yaw_rate")
+STATE_ROOT_NAMES = ("dx", "dz", "dyaw", "root_height", "root_pitch", "root_roll")
+CONTACT_NAMES = ("contact_left", "contact_right")
+QUAT_ROOT_NAMES = ("vel_forward", "vel_sideways", "root_height", "yaw_rate", "root_pitch", "root_roll")
+
+
+def feature_dim(name: str, num_joints: int = 21) -> int:
+    """Feature count D of a representation for a skeleton of num_joints joints (66, 68, 90 for 21)."""
+    dims = {"positions_control": 3 * num_joints + 3, "state_features": 6 + 3 * (num_joints - 1) + 2,
+            "quaternion_root": 4 * num_joints + 6}
+    return dims[_check_name(name)]
+
+
+def feature_names(name: str, skeleton: Skeleton | None = None) -> list[str]:
+    """The D feature names of a representation, in column order (canonical skeleton by default)."""
+    names = (skeleton or Skeleton.canonical()).names
+    if _check_name(name) == "positions_control":
+        return [f"{j}_{a}" for j in names for a in "xyz"] + list(CONTROL_NAMES)
+    if name == "state_features":
+        return list(STATE_ROOT_NAMES) + [f"{j}_r{a}" for j in names[1:] for a in "xyz"] + list(CONTACT_NAMES)
+    return [f"{j}_q{a}" for j in names for a in "wxyz"] + list(QUAT_ROOT_NAMES)
+
+
+def _check_name(name: str) -> str:
+    if name not in REPRESENTATIONS:
+        raise ValueError(f"unknown representation {name!r}; choose one of {', '.join(REPRESENTATIONS)}")
+    return name
+
+
+def _check_features(features, name: str, num_joints: int) -> np.ndarray:
+    f = np.asarray(features, dtype=np.float64)
+    D = feature_dim(name, num_joints)
+    if f.ndim != 2 or f.shape[1] != D or f.shape[0] < 1:
+        raise ValueError(f"{name}: features must be (T, {D}) for {num_joints} joints, got {f.shape}")
+    if not np.isfinite(f).all():
+        raise ValueError(f"{name}: features contain NaN or inf")
+    return f
+
+
+# --- the root's floor frame -------------------------------------------------------------
+
+
+def _root_ypr(motion: Motion) -> np.ndarray:
+    """motion -> (T, 3) (yaw, pitch, roll) of the root rotation, R = R_y(yaw) R_x(pitch) R_z(roll)."""
+    return quat_to_euler(torch.from_numpy(motion.rotations[:, 0]), "YXZ").numpy()
+
+
+def _to_floor_frame(v_xz: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """World (x, z) vectors (..., 2), yaw (...) -> the same vectors in the floor frame, R_y(-yaw) v."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.stack((c * v_xz[..., 0] - s * v_xz[..., 1], s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
+
+
+def _to_world(v_xz: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Floor-frame (x, z) vectors (..., 2), yaw (...) -> world, R_y(yaw) v."""
+    return _to_floor_frame(v_xz, -yaw)
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    """Angles -> [-pi, pi)."""
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def root_start(motion: Motion) -> tuple[float, float, float]:
+    """The first frame's floor transform (x0, z0, yaw0), the decoders' ``init``."""
+    yaw0 = float(_root_ypr(motion[:1])[0, 0])
+    return float(motion.root_positions[0, 0]), float(motion.root_positions[0, 2]), yaw0
+
+
+def root_deltas(root_xz: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """root_xz (T, 2), yaw (T,) -> per-frame displacement (T, 2) (sideways, forward) in the previous
+    floor frame, and yaw change (T,) wrapped to [-pi, pi); frame 0 repeats frame 1 (zeros if T == 1)."""
+    T = len(yaw)
+    if T < 2:
+        return np.zeros((T, 2)), np.zeros(T)
+    d = _to_floor_frame(np.diff(root_xz, axis=0), yaw[:-1])  # (T-1, 2)
+    dyaw = _wrap(np.diff(yaw))  # (T-1,)
+    return np.concatenate((d[:1], d)), np.concatenate((dyaw[:1], dyaw))
+
+
+def integrate_root(d: np.ndarray, dyaw: np.ndarray, init=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of `root_deltas`, Wang eq. (4): M_t = M_{t-1} M_t,local from M_0 = init.
+
+    d (T, 2) per-frame floor-frame displacements, dyaw (T,) -> root_xz (T, 2), yaw (T,) (unwrapped).
+    Row 0 of d and dyaw is ignored: frame 0 sits at init = (x0, z0, yaw0).
+    """
+    x0, z0, yaw0 = (float(v) for v in init)
+    yaw = yaw0 + np.concatenate(([0.0], np.cumsum(dyaw[1:])))  # yaw_t = yaw_{t-1} + dyaw_t
+    step = _to_world(d[1:], yaw[:-1])  # p_t - p_{t-1} = R_y(yaw_{t-1}) d_t
+    xz = np.array([x0, z0]) + np.concatenate((np.zeros((1, 2)), np.cumsum(step, axis=0)))
+    return xz, yaw
+
+
+def _root_motion(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """motion -> ypr (T, 3), floor displacement per frame (T, 2) (sideways, forward), dyaw (T,)."""
+    ypr = _root_ypr(motion)
+    d, dyaw = root_deltas(motion.root_positions[:, [0, 2]], ypr[:, 0])
+    return ypr, d, dyaw
+
+
+def _assemble(skeleton: Skeleton, fps: float, xz, height, ypr, local_rot) -> Motion:
+    """Root floor position (T, 2), height (T,), root (yaw, pitch, roll) (T, 3), non-root local quats
+    (T, J-1, 4) -> Motion."""
+    root_q = euler_to_quat(torch.from_numpy(ypr), "YXZ").numpy()  # R_y(yaw) R_x(pitch) R_z(roll)
+    rot = np.concatenate((root_q[:, None], local_rot), axis=1)
+    root = np.stack((xz[:, 0], height, xz[:, 1]), -1)
+    return Motion(rot, root, skeleton, fps)
+
+
+# --- positions_control (papers A, D) ----------------------------------------------------
+
+
+def encode_positions_control(motion: Motion) -> np.ndarray:
+    """motion -> (T, 3J + 3): joint positions in the floor frame, then (vel_forward, vel_sideways, yaw_rate)
+    in m/s and rad/s (Habibie et al. 2017 sec. 3; MoGlow sec. 4 control)."""
+    ypr, d, dyaw = _root_motion(motion)
+    pos = motion.positions()  # (T, J, 3) world
+    rel = pos - motion.root_positions[:, None] * np.array([1.0, 0.0, 1.0])  # relative to floor projection
+    local_xz = _to_floor_frame(rel[..., [0, 2]], ypr[:, 0:1])  # (T, J, 2)
+    local = np.stack((local_xz[..., 0], rel[..., 1], local_xz[..., 1]), -1)  # (T, J, 3)
+    control = np.stack((d[:, 1], d[:, 0], dyaw), -1) * motion.fps  # (T, 3) per second
+    return np.concatenate((local.reshape(len(motion), -1), control), axis=1)
+
+
+def decode_positions(features, fps: float, start=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """positions_control features (T, 3J + 3) -> world joint positions (T, J, 3).
+
+    Integrates the control (per second, so fps is needed) from start = (x0, z0, yaw0)
+    to the root's floor path, then places the floor-frame positions in the world.
+    """
+    f = np.asarray(features, dtype=np.float64)
+    if f.ndim != 2 or (f.shape[1] - 3) % 3 or f.shape[1] < 6:
+        raise ValueError(f"positions_control: features must be (T, 3J + 3), got {f.shape}")
+    f = _check_features(f, "positions_control", (f.shape[1] - 3) // 3)
+    local = f[:, :-3].reshape(len(f), -1, 3)
+    vel_fwd, vel_side, yaw_rate = (f[:, -3 + i] / fps for i in range(3))
+    xz, yaw = integrate_root(np.stack((vel_side, vel_fwd), -1), yaw_rate, start)
+    world_xz = _to_world(local[..., [0, 2]], yaw[:, None]) + xz[:, None]
+    return np.stack((world_xz[..., 0], local[..., 1], world_xz[..., 1]), -1)
+
+
+def decode_positions_control(features, skeleton: Skeleton, fps: float, init=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The common decode signature for positions_control: -> positions (T, J, 3) (no rotations exist)."""
+    f = _check_features(features, "positions_control", skeleton.num_joints)
+    return decode_positions(f, fps, init)
+
+
+# --- state_features (paper B) -----------------------------------------------------------
+
+
+def encode_state_features(motion: Motion) -> np.ndarray:
+    """motion -> (T, 6 + 3(J-1) + 2) = [dx, dz, dyaw, t_y, pitch, roll, theta_2..theta_J (expmap), contacts].
+
+    Wang et al. eq. (3): dx, dz, dyaw per frame in the previous frame's floor frame.
+    """
+    ypr, d, dyaw = _root_motion(motion)
+    theta = quat_to_expmap(torch.from_numpy(motion.rotations[:, 1:])).numpy()  # (T, J-1, 3)
+    contacts = foot_contacts(motion.positions(), motion.skeleton, motion.fps).astype(np.float64)  # (T, 2)
+    root = np.column_stack((d[:, 0], d[:, 1], dyaw, motion.root_positions[:, 1], ypr[:, 1], ypr[:, 2]))
+    return np.concatenate((root, theta.reshape(len(motion), -1), contacts), axis=1)
+
+
+def decode_state_features(features, skeleton: Skeleton, fps: float, init=(0.0, 0.0, 0.0)) -> Motion:
+    """(T, 6 + 3(J-1) + 2) -> Motion, integrating the root with Wang eq. (4) from init = (x0, z0, yaw0).
+
+    The contact bits are not needed to decode (they are derived from the pose).
+    """
+    f = _check_features(features, "state_features", skeleton.num_joints)
+    xz, yaw = integrate_root(f[:, 0:2], f[:, 2], init)
+    ypr = np.column_stack((yaw, f[:, 4], f[:, 5]))
+    local = expmap_to_quat(torch.from_numpy(f[:, 6:-2].reshape(len(f), -1, 3))).numpy()
+    return _assemble(skeleton, fps, xz, f[:, 3], ypr, local)
+
+
+# --- quaternion_root (paper C) ----------------------------------------------------------
+
+
+def _continuous(q: np.ndarray) -> np.ndarray:
+    """(T, J, 4) -> the same rotations with signs chosen so consecutive frames have q_t . q_{t-1} >= 0."""
+    c = quat_canonical(torch.from_numpy(q)).numpy()
+    flip = np.concatenate((np.zeros((1, q.shape[1])), (c[1:] * c[:-1]).sum(-1) < 0))
+    return c * np.where(np.cumsum(flip, axis=0) % 2, -1.0, 1.0)[..., None]
+
+
+def encode_quaternion_root(motion: Motion) -> np.ndarray:
+    """motion -> (T, 4J + 6): local quaternions (root: R_x(pitch) R_z(roll), its heading removed), then
+    (vel_forward, vel_sideways, root_height, yaw_rate, pitch, roll) in m/s, m, rad/s, rad (Ghorbani sec. 5.1).
+
+    Quaternion signs are made continuous in time (first frame w >= 0).
+    """
+    ypr, d, dyaw = _root_motion(motion)
+    q = motion.rotations.copy()
+    q[:, 0] = euler_to_quat(torch.from_numpy(np.column_stack((0 * ypr[:, 0], ypr[:, 1:]))), "YXZ").numpy()
+    root = np.column_stack((d[:, 1] * motion.fps, d[:, 0] * motion.fps, motion.root_positions[:, 1],
+                            dyaw * motion.fps, ypr[:, 1], ypr[:, 2]))
+    return np.concatenate((_continuous(q).reshape(len(motion), -1), root), axis=1)
+
+
+def decode_quaternion_root(features, skeleton: Skeleton, fps: float, init=(0.0, 0.0, 0.0)) -> Motion:
+    """(T, 4J + 6) -> Motion; quaternions are normalised.  The root's tilt comes from its quaternion
+    (pitch/roll features are redundant inputs for the model), its heading from the integrated yaw rate."""
+    f = _check_features(features, "quaternion_root", skeleton.num_joints)
+    q = f[:, :-6].reshape(len(f), -1, 4)
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if (norm < 1e-6).any():
+        raise ValueError("quaternion_root: a quaternion has (near) zero norm")
+    q = q / norm
+    root = f[:, -6:]
+    xz, yaw = integrate_root(np.column_stack((root[:, 1], root[:, 0])) / fps, root[:, 3] / fps, init)
+    tilt = quat_to_euler(torch.from_numpy(q[:, 0]), "YXZ").numpy()  # (T, 3), yaw ~ 0
+    ypr = np.column_stack((yaw + tilt[:, 0], tilt[:, 1], tilt[:, 2]))
+    return _assemble(skeleton, fps, xz, root[:, 2], ypr, q[:, 1:])
+
+
+# --- by name ----------------------------------------------------------------------------
+
+_ENCODERS = {"positions_control": encode_positions_control, "state_features": encode_state_features,
+             "quaternion_root": encode_quaternion_root}
+_DECODERS = {"positions_control": decode_positions_control, "state_features": decode_state_features,
+             "quaternion_root": decode_quaternion_root}
+
+
+def encode(motion: Motion, name: str) -> np.ndarray:
+    """motion -> (T, D) float64 features of representation `name`."""
+    return _ENCODERS[_check_name(name)](motion)
+
+
+def decode(features, name: str, skeleton: Skeleton, fps: float, init=(0.0, 0.0, 0.0)):
+    """(T, D) -> Motion (state_features, quaternion_root) or positions (T, J, 3) (positions_control)."""
+    return _DECODERS[_check_name(name)](features, skeleton, fps, init)
+
+
+def decode_to_positions(features, name: str, skeleton: Skeleton, fps: float, init=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(T, D) -> world joint positions (T, J, 3), whatever the representation."""
+    out = decode(features, name, skeleton, fps, init)
+    return out if isinstance(out, np.ndarray) else out.positions()
