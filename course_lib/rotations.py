@@ -23,6 +23,11 @@ def _check_last(x: torch.Tensor, n: int, name: str) -> None:
         raise ValueError(f"{name}: expected last dimension {n}, got shape {tuple(x.shape)}")
 
 
+def _check_dim(x: torch.Tensor, n: int, name: str, dim: int) -> None:
+    if x.dim() == 0 or x.shape[dim] != n:
+        raise ValueError(f"{name}: expected size {n} in dimension {dim}, got shape {tuple(x.shape)}")
+
+
 def _safe_norm(v: torch.Tensor, eps: float = 1e-12) -> tuple[torch.Tensor, torch.Tensor]:
     """(..., D) -> (norm (...), small (...) bool).  The norm's gradient is finite at 0."""
     sq = (v * v).sum(-1)
@@ -37,12 +42,15 @@ def quat_identity(shape: tuple[int, ...] = (), dtype=torch.float32) -> torch.Ten
     return q
 
 
-def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Hamilton product a * b: (..., 4), (..., 4) -> (..., 4); b is applied first."""
-    _check_last(a, 4, "quat_mul a")
-    _check_last(b, 4, "quat_mul b")
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
+def quat_mul(a: torch.Tensor, b: torch.Tensor, dim: int = -1) -> torch.Tensor:
+    """Hamilton product a * b: (..., 4), (..., 4) -> (..., 4); b is applied first.
+
+    ``dim`` names the component axis (forward_kinematics uses a (J, 4, B) layout).
+    """
+    _check_dim(a, 4, "quat_mul a", dim)
+    _check_dim(b, 4, "quat_mul b", dim)
+    aw, ax, ay, az = a.unbind(dim)
+    bw, bx, by, bz = b.unbind(dim)
     return torch.stack(
         (
             aw * bw - ax * bx - ay * by - az * bz,
@@ -50,7 +58,7 @@ def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
             aw * by - ax * bz + ay * bw + az * bx,
             aw * bz + ax * by - ay * bx + az * bw,
         ),
-        dim=-1,
+        dim=dim,
     )
 
 
@@ -74,14 +82,19 @@ def quat_canonical(q: torch.Tensor) -> torch.Tensor:
     return torch.where(q[..., :1] < 0, -q, q)
 
 
-def quat_rotate(q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    """Rotate vectors: q (..., 4) unit, v (..., 3) -> (..., 3).  v' = q v q*."""
-    _check_last(q, 4, "quat_rotate q")
-    _check_last(v, 3, "quat_rotate v")
-    w, u = q[..., :1], q[..., 1:]
-    # v' = v + 2w (u x v) + 2 u x (u x v)   (expanded q v q*, fewer flops)
-    t = 2.0 * torch.linalg.cross(u.expand_as(v), v, dim=-1)
-    return v + w * t + torch.linalg.cross(u.expand_as(t), t, dim=-1)
+def quat_rotate(q: torch.Tensor, v: torch.Tensor, dim: int = -1) -> torch.Tensor:
+    """Rotate vectors: q (..., 4) unit, v (..., 3) -> (..., 3).  v' = q v q*.
+
+    ``dim`` names the component axis; q and v broadcast against each other.
+    """
+    _check_dim(q, 4, "quat_rotate q", dim)
+    _check_dim(v, 3, "quat_rotate v", dim)
+    w, x, y, z = q.unbind(dim)
+    vx, vy, vz = v.unbind(dim)
+    # v' = v + w t + u x t,  t = 2 u x v   (expanded q v q*, fewer flops)
+    tx, ty, tz = 2 * (y * vz - z * vy), 2 * (z * vx - x * vz), 2 * (x * vy - y * vx)
+    return torch.stack((vx + w * tx + y * tz - z * ty, vy + w * ty + z * tx - x * tz,
+                        vz + w * tz + x * ty - y * tx), dim=dim)
 
 
 def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
@@ -175,3 +188,179 @@ def quat_slerp(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float) -> t
     w1 = torch.where(near, t * torch.ones_like(theta), torch.sin(t * theta) / s)
     q = w0[..., None] * q0 + w1[..., None] * q1
     return q / torch.linalg.vector_norm(q, dim=-1, keepdim=True)
+
+
+# ---------------------------------------------------------------------------
+# Euler angles
+# ---------------------------------------------------------------------------
+
+_AXES = "XYZ"
+
+
+def _parse_order(order: str) -> tuple[tuple[int, int, int], bool]:
+    """'ZYX' (intrinsic, BVH channel order) or 'xyz' (extrinsic) -> axis indices in intrinsic order, extrinsic flag."""
+    if not isinstance(order, str) or len(order) != 3 or len(set(order.upper())) != 3 \
+            or not set(order.upper()) <= set(_AXES) or not (order.isupper() or order.islower()):
+        raise ValueError(f"Euler order must be a permutation of 'XYZ' (intrinsic, as BVH channels) or of 'xyz' "
+                         f"(extrinsic), got {order!r}")
+    extrinsic = order.islower()
+    axes = tuple(_AXES.index(c) for c in order.upper())
+    return (axes[::-1] if extrinsic else axes), extrinsic
+
+
+def _axis_quat(angle: torch.Tensor, axis: int) -> torch.Tensor:
+    """angle (...) radians about coordinate axis 0/1/2 -> (..., 4)."""
+    half = 0.5 * angle
+    parts = [torch.cos(half)] + [torch.zeros_like(half)] * 3
+    parts[1 + axis] = torch.sin(half)
+    return torch.stack(parts, -1)
+
+
+def euler_to_quat(angles: torch.Tensor, order: str) -> torch.Tensor:
+    """angles (..., 3) radians -> (..., 4).
+
+    Intrinsic orders are BVH channel lists: 'ZYX' means channels Zrotation Yrotation
+    Xrotation, R = Rz(a0) Ry(a1) Rx(a2), as scipy's ``from_euler('ZYX', a)``; lowercase
+    orders are extrinsic (scipy ``'xyz'`` = intrinsic ``'ZYX'`` with the angles reversed).
+    """
+    _check_last(angles, 3, "euler_to_quat")
+    axes, extrinsic = _parse_order(order)
+    a = angles.flip(-1) if extrinsic else angles
+    q0, q1, q2 = (_axis_quat(a[..., i], ax) for i, ax in enumerate(axes))
+    return quat_mul(quat_mul(q0, q1), q2)
+
+
+def euler_to_matrix(angles: torch.Tensor, order: str) -> torch.Tensor:
+    """angles (..., 3) radians -> (..., 3, 3); order as in `euler_to_quat`."""
+    return quat_to_matrix(euler_to_quat(angles, order))
+
+
+def _safe_atan2(y: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """atan2 whose gradient is 0 (not NaN) at the undefined point (0, 0)."""
+    zero = (x == 0) & (y == 0)
+    return torch.where(zero, torch.zeros_like(x), torch.atan2(y, torch.where(zero, torch.ones_like(x), x)))
+
+
+def _norm(v: torch.Tensor, dim: int = -1) -> torch.Tensor:
+    """(..., D) -> (...) exact Euclidean norm whose gradient is 0 (not NaN) at v = 0."""
+    sq = (v * v).sum(dim)
+    pos = sq > 0
+    return torch.where(pos, torch.sqrt(torch.where(pos, sq, torch.ones_like(sq))), torch.zeros_like(sq))
+
+
+def matrix_to_euler(m: torch.Tensor, order: str) -> torch.Tensor:
+    """(..., 3, 3) rotation matrices -> (..., 3) angles; the middle angle lies in [-pi/2, pi/2].
+
+    With R = R_i(a) R_j(b) R_k(c) and s = +1 for an even permutation (i, j, k):
+    sin b = s R_ik, tan a = -s R_jk / R_kk, tan c = -s R_ij / R_ii.  At gimbal lock
+    (cos b = 0) a and c are not unique: c = 0 and tan a = s R_kj / R_jj (scipy's choice).
+    """
+    if m.shape[-2:] != (3, 3):
+        raise ValueError(f"matrix_to_euler: expected (..., 3, 3), got {tuple(m.shape)}")
+    (i, j, k), extrinsic = _parse_order(order)
+    s = 1.0 if (j - i) % 3 == 1 else -1.0
+    cos_b = _norm(torch.stack((m[..., i, i], m[..., i, j]), -1))
+    b = torch.atan2(s * m[..., i, k], cos_b)
+    lock = cos_b < 1e-7
+    a = torch.where(lock, _safe_atan2(s * m[..., k, j], m[..., j, j]), _safe_atan2(-s * m[..., j, k], m[..., k, k]))
+    c = torch.where(lock, torch.zeros_like(b), _safe_atan2(-s * m[..., i, j], m[..., i, i]))
+    angles = torch.stack((a, b, c), -1)
+    return angles.flip(-1) if extrinsic else angles
+
+
+def quat_to_euler(q: torch.Tensor, order: str) -> torch.Tensor:
+    """(..., 4) unit quaternions -> (..., 3) angles, see `matrix_to_euler` and `euler_to_quat`."""
+    _check_last(q, 4, "quat_to_euler")
+    return matrix_to_euler(quat_to_matrix(q), order)
+
+
+# ---------------------------------------------------------------------------
+# 6-D representation (Zhou et al. 2019, "On the continuity of rotation representations")
+# ---------------------------------------------------------------------------
+
+def _unit(v: torch.Tensor) -> torch.Tensor:
+    return v / torch.linalg.vector_norm(v, dim=-1, keepdim=True).clamp_min(_EPS)
+
+
+def _frame_from_two(a1: torch.Tensor, a2: torch.Tensor) -> torch.Tensor:
+    """Two (..., 3) vectors -> (..., 3, 3) rotation whose columns are b1, b2, b1 x b2."""
+    # b1 = a1/|a1|;  b2 = unit(a2 - (b1 . a2) b1);  b3 = b1 x b2   -- Zhou et al. eq. (16)
+    b1 = _unit(a1)
+    b2 = _unit(a2 - (b1 * a2).sum(-1, keepdim=True) * b1)
+    b3 = torch.linalg.cross(b1, b2, dim=-1)
+    return torch.stack((b1, b2, b3), -1)
+
+
+def gram_schmidt(m: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3) -> (..., 3, 3) nearby rotation: Gram-Schmidt on columns 0 and 1, column 2 = c0 x c1.
+
+    Equals full Gram-Schmidt for matrices with positive determinant, and always returns det +1.
+    """
+    if m.shape[-2:] != (3, 3):
+        raise ValueError(f"gram_schmidt: expected (..., 3, 3), got {tuple(m.shape)}")
+    return _frame_from_two(m[..., :, 0], m[..., :, 1])
+
+
+def matrix_to_sixd(m: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3) -> (..., 6): first column then second column of R."""
+    if m.shape[-2:] != (3, 3):
+        raise ValueError(f"matrix_to_sixd: expected (..., 3, 3), got {tuple(m.shape)}")
+    return torch.cat((m[..., :, 0], m[..., :, 1]), -1)
+
+
+def sixd_to_matrix(d6: torch.Tensor) -> torch.Tensor:
+    """(..., 6) any two non-parallel 3-vectors -> (..., 3, 3) rotation (Gram-Schmidt)."""
+    _check_last(d6, 6, "sixd_to_matrix")
+    return _frame_from_two(d6[..., :3], d6[..., 3:])
+
+
+def quat_to_sixd(q: torch.Tensor) -> torch.Tensor:
+    """(..., 4) unit quaternions -> (..., 6)."""
+    return matrix_to_sixd(quat_to_matrix(q))
+
+
+def sixd_to_quat(d6: torch.Tensor) -> torch.Tensor:
+    """(..., 6) -> (..., 4) unit quaternions with w >= 0."""
+    return matrix_to_quat(sixd_to_matrix(d6))
+
+
+# ---------------------------------------------------------------------------
+# Geodesic distances (Ghorbani et al. 2020, eq. 16-21)
+# ---------------------------------------------------------------------------
+
+def quat_geodesic(q1: torch.Tensor, q2: torch.Tensor, kind: str = "d1") -> torch.Tensor:
+    """(..., 4), (..., 4) unit quaternions -> (...) distance.
+
+    d1 = 2 arccos|q1 . q2| (radians, exact)   -- Ghorbani eq. (17)
+    d2 = 1 - |q1 . q2|                         -- eq. (18)
+    d3 = min(|q1 - q2|^2, |q1 + q2|^2)         -- eq. (20)
+    d1 is computed as 2 atan2(|vec(q1* q2)|, |q1 . q2|): the same angle, but with finite
+    gradients at distance 0, where arccos'(1) is infinite.
+    """
+    _check_last(q1, 4, "quat_geodesic q1")
+    _check_last(q2, 4, "quat_geodesic q2")
+    if kind == "d1":
+        r = quat_mul(quat_conjugate(q1), q2)  # w(r) = q1 . q2
+        return 2.0 * torch.atan2(_norm(r[..., 1:]), r[..., 0].abs())
+    if kind == "d2":
+        return 1.0 - (q1 * q2).sum(-1).abs()
+    if kind == "d3":
+        return torch.minimum(((q1 - q2) ** 2).sum(-1), ((q1 + q2) ** 2).sum(-1))
+    raise ValueError(f"quat_geodesic: kind must be 'd1', 'd2' or 'd3', got {kind!r}")
+
+
+def matrix_geodesic(m1: torch.Tensor, m2: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3), (..., 3, 3) rotations -> (...) angle in [0, pi] of R1 R2^T.
+
+    Ghorbani eq. (21), d = ||log(R1 R2^T)||, with the norm of the rotation vector (the angle;
+    the Frobenius norm of the skew matrix log(.) is sqrt(2) times it).  Computed as
+    atan2(sin, cos): cos = (tr - 1) / 2, sin = |vee(R - R^T)| / 2, stable at 0 and pi.
+    """
+    for m, name in ((m1, "m1"), (m2, "m2")):
+        if m.shape[-2:] != (3, 3):
+            raise ValueError(f"matrix_geodesic {name}: expected (..., 3, 3), got {tuple(m.shape)}")
+    r = m1 @ m2.transpose(-1, -2)
+    cos = 0.5 * (r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0)
+    vee = torch.stack((r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]), -1)
+    return torch.atan2(0.5 * _norm(vee), cos)
+
