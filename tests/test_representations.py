@@ -6,7 +6,7 @@ import torch
 
 from course_lib import representations as R
 from course_lib.motion import Motion
-from course_lib.rotations import axis_angle_to_quat, euler_to_quat, expmap_to_quat
+from course_lib.rotations import axis_angle_to_quat, euler_to_quat, expmap_to_quat, quat_mul, quat_rotate
 from course_lib.skeleton import Skeleton
 
 
@@ -42,8 +42,8 @@ def straight_walk(direction_deg=90.0, speed=1.5, heading_deg=90.0, fps=120.0, T=
 
 def rotated_about_y(m: Motion, angle: float, shift=(0.0, 0.0)) -> Motion:
     """The same motion turned by `angle` about the world Y axis and shifted on the floor."""
-    qy = axis_angle_to_quat(torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64), torch.tensor(angle, dtype=torch.float64))
-    from course_lib.rotations import quat_mul, quat_rotate
+    y = torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64)
+    qy = axis_angle_to_quat(y, torch.tensor(angle, dtype=torch.float64))
     rot = m.rotations.copy()
     rot[:, 0] = quat_mul(qy, torch.from_numpy(rot[:, 0])).numpy()
     root = quat_rotate(qy.expand(len(m), 4), torch.from_numpy(m.root_positions)).numpy()
@@ -141,7 +141,7 @@ def test_contact_bits_and_quaternion_continuity():
 
 
 def test_feature_names_and_dims():
-    for name, d in zip(R.REPRESENTATIONS, (66, 68, 90)):
+    for name, d in zip(R.REPRESENTATIONS, (66, 68, 90), strict=True):
         assert R.feature_dim(name) == d == len(R.feature_names(name))
     assert R.feature_names("state_features")[:3] == ["dx", "dz", "dyaw"]
     assert R.feature_names("state_features")[6] == "LeftUpLeg_rx"
