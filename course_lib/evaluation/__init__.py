@@ -1,0 +1,50 @@
+"""Evaluation toolkit: motion metrics, attribute classifiers, FID/IS, results tables.
+
+- `metrics`: prediction/pose error (Habibie 2017 sec. 4.3), foot skate, ground
+  penetration, jitter, bone-length violation, control following, APD, NPSS;
+- `classifiers`: Ghorbani 2020 Table 1 action/style classifiers (shipped checkpoints);
+- `distribution`: FID, Inception Score (Ghorbani eq. 27-29), two-sample test;
+- `tables`: our numbers beside the paper's as Markdown / HTML / dict.
+
+Importing this package loads nothing from disk; the classifiers load on first use.
+"""
+
+from course_lib.evaluation.classifiers import (
+    ClassifierConfig,
+    MotionClassifier,
+    accuracy,
+    load_classifier,
+    motions_to_batch,
+)
+from course_lib.evaluation.distribution import (
+    classifier_features,
+    fid,
+    frechet_distance,
+    inception_score,
+    summary_features,
+    two_sample_accuracy,
+)
+from course_lib.evaluation.metrics import (
+    apd,
+    bone_length_violation,
+    facing_yaw,
+    foot_skate,
+    ground_penetration,
+    heading_error,
+    jitter,
+    npss,
+    path_distance,
+    pose_error,
+    prediction_error,
+    root_relative,
+    speed_error,
+)
+from course_lib.evaluation.tables import ResultsTable, table
+
+__all__ = [
+    "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation",
+    "classifier_features", "facing_yaw", "fid", "foot_skate", "frechet_distance", "ground_penetration",
+    "heading_error", "inception_score", "jitter", "load_classifier", "motions_to_batch", "npss", "path_distance",
+    "pose_error", "prediction_error", "root_relative", "speed_error", "summary_features", "table",
+    "two_sample_accuracy",
+]

@@ -1,0 +1,355 @@
+"""Motion-quality metrics on joint positions: prediction error, physics, control, diversity.
+
+Every metric takes world joint positions, either a float array ``(N, T, J, 3)``
+(or one clip ``(T, J, 3)``), numpy or torch, in metres, Y up, floor at y = 0,
+or a list of :class:`~course_lib.motion.Motion` (their FK positions; the
+Motion's own skeleton and fps are then used).  Inputs are validated: a wrong
+joint count, NaN/inf values or mismatched shapes raise a ValueError naming the
+problem.  Units are stated on each function.
+
+Taught in notebooks/02_vae_lstm.ipynb (prediction/pose error) and
+notebooks/07_benchmark.ipynb (everything else).
+
+Differs from the papers:
+- Habibie et al. 2017 (sec. 4.3, Tables 1-2) report "mean squared error between
+  generated joint positions and ground truth" without units; their numbers are
+  in their own (likely normalised) data units.  Ours are in m^2: compare trends
+  and model rankings with the paper, not the values.
+- NPSS (Gopalakrishnan et al. 2019) is computed on any per-frame features (the
+  paper used Euler angles); we use the one-sided power spectrum (rfft) since the
+  spectrum of a real signal is symmetric.
+- APD is the mean per-joint Euclidean distance in metres (not the flattened-
+  sequence L2 norm of DLow), so it does not grow with clip length.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from course_lib.motion import CONTACT_HEIGHT, Motion
+from course_lib.skeleton import Skeleton
+
+__all__ = [
+    "apd", "bone_length_violation", "facing_yaw", "foot_skate", "ground_penetration", "heading_error",
+    "jitter", "npss", "path_distance", "pose_error", "prediction_error", "root_relative", "speed_error",
+]
+
+
+# ----------------------------------------------------------------------------- input checks
+
+
+def _finite(x: np.ndarray, name: str) -> np.ndarray:
+    if not np.isfinite(x).all():
+        raise ValueError(f"{name}: contains NaN or inf values")
+    return x
+
+
+def _to_numpy(x, name: str) -> np.ndarray:
+    if isinstance(x, torch.Tensor):
+        x = x.detach().cpu().numpy()
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name}: expected a numeric array or a list of Motions, got {type(x).__name__}") from err
+
+
+def _clips(x, name: str, skeleton: Skeleton | None = None, fps: float | None = None
+           ) -> tuple[list[np.ndarray], Skeleton, float | None]:
+    """Motions or (N, T, J, 3) / (T, J, 3) positions -> list of (T, J, 3) arrays, skeleton, fps."""
+    if isinstance(x, Motion):
+        x = [x]
+    if isinstance(x, (list, tuple)) and x and all(isinstance(m, Motion) for m in x):
+        skel = skeleton or x[0].skeleton
+        rates = {float(m.fps) for m in x}
+        if len(rates) > 1:
+            raise ValueError(f"{name}: Motions have different frame rates {sorted(rates)}; resample them first")
+        fps = fps if fps is not None else rates.pop()
+        clips = [m.positions() for m in x]
+    else:
+        arr = _to_numpy(x, name)
+        if arr.ndim == 3:
+            arr = arr[None]
+        if arr.ndim != 4 or arr.shape[-1] != 3:
+            raise ValueError(f"{name}: positions must be (N, T, J, 3) or (T, J, 3), got shape {arr.shape}")
+        skel = skeleton or Skeleton.canonical()
+        clips = list(arr)
+    if not clips:
+        raise ValueError(f"{name}: no clips given")
+    for c in clips:
+        if c.shape[1] != skel.num_joints:
+            raise ValueError(f"{name}: expected {skel.num_joints} joints (skeleton), got {c.shape[1]}")
+        _finite(c, name)
+    return clips, skel, fps
+
+
+def _batch(x, name: str, skeleton: Skeleton | None = None) -> tuple[np.ndarray, Skeleton]:
+    """Like `_clips` but all clips must have the same length -> (N, T, J, 3)."""
+    clips, skel, _ = _clips(x, name, skeleton)
+    lengths = sorted({len(c) for c in clips})
+    if len(lengths) > 1:
+        raise ValueError(f"{name}: clips have different lengths {lengths}; crop them to a common length")
+    return np.stack(clips), skel
+
+
+def _pair(pred, target, skeleton: Skeleton | None) -> tuple[np.ndarray, np.ndarray, Skeleton]:
+    p, skel = _batch(pred, "pred", skeleton)
+    t, _ = _batch(target, "target", skel)
+    if p.shape != t.shape:
+        raise ValueError(f"pred and target have mismatched shapes {p.shape} vs {t.shape} "
+                         "(clips, frames, joints, 3)")
+    return p, t, skel
+
+
+def _need_fps(fps, name: str) -> float:
+    if fps is None or not float(fps) > 0:
+        raise ValueError(f"{name}: give fps (frames per second, > 0) for position arrays, got {fps}")
+    return float(fps)
+
+
+def _frames(frames, T: int) -> list[int]:
+    frames = list(range(T)) if frames is None else [int(f) for f in np.atleast_1d(frames)]
+    bad = [f for f in frames if not 0 <= f < T]
+    if bad:
+        raise ValueError(f"frames {bad} are outside the clips' 0..{T - 1} frame range")
+    return frames
+
+
+# ----------------------------------------------------------------------------- prediction error (Habibie 4.3)
+
+
+def prediction_error(pred, target, frames=None, skeleton: Skeleton | None = None) -> dict[int, float]:
+    """Motion prediction error per frame (Habibie et al. 2017, sec. 4.3, Table 1), in m^2.
+
+    pred, target: (N, T, J, 3) world positions (or lists of Motions) -> {frame: error}.
+    error(f) = 1/(N J) sum_n sum_j ||pred[n, f, j] - target[n, f, j]||^2, i.e. the
+    squared Euclidean joint distance averaged over clips and joints, world space
+    (root translation and facing included).  frames: 0-based indices (default all).
+    """
+    p, t, _ = _pair(pred, target, skeleton)
+    sq = ((p - t) ** 2).sum(-1).mean(axis=(0, 2))  # (T,)
+    return {f: float(sq[f]) for f in _frames(frames, p.shape[1])}
+
+
+def facing_yaw(positions, skeleton: Skeleton | None = None) -> np.ndarray:
+    """(N, T, J, 3) positions -> (N, T) facing angle about +Y, radians (0 = facing +Z).
+
+    The facing direction is forward = across x up, with across = LeftUpLeg - RightUpLeg
+    projected on the floor (the character's left is +X when it faces +Z).
+    """
+    x, skel = _batch(positions, "positions", skeleton)
+    across = x[..., skel.index("LeftUpLeg"), :] - x[..., skel.index("RightUpLeg"), :]  # (N, T, 3)
+    # forward = across x (0, 1, 0) = (-across_z, 0, across_x)
+    return np.arctan2(-across[..., 2], across[..., 0])
+
+
+def root_relative(positions, skeleton: Skeleton | None = None) -> np.ndarray:
+    """(N, T, J, 3) world positions -> (N, T, J, 3) in each frame's root frame (translation and yaw removed)."""
+    x, skel = _batch(positions, "positions", skeleton)
+    yaw = facing_yaw(x, skel)  # (N, T)
+    local = x - x[..., :1, :] * np.array([1.0, 0.0, 1.0])  # subtract the root's floor projection
+    c, s = np.cos(-yaw)[..., None], np.sin(-yaw)[..., None]  # rotate by -yaw about +Y
+    out = local.copy()
+    out[..., 0] = c * local[..., 0] + s * local[..., 2]
+    out[..., 2] = -s * local[..., 0] + c * local[..., 2]
+    return out
+
+
+def pose_error(pred, target, frames=None, skeleton: Skeleton | None = None) -> dict[int, float]:
+    """Pose prediction error per frame (Habibie et al. 2017, Table 2), in m^2.
+
+    pred, target: (N, T, J, 3) -> {frame: error}.  Like `prediction_error`, but each
+    pose is first expressed relative to its own root: the root's horizontal
+    translation and its facing yaw (see `facing_yaw`) are removed, root height kept.
+    """
+    p, t, skel = _pair(pred, target, skeleton)
+    return prediction_error(root_relative(p, skel), root_relative(t, skel), frames, skel)
+
+
+# ----------------------------------------------------------------------------- physical plausibility
+
+
+def foot_skate(motions, fps: float | None = None, skeleton: Skeleton | None = None,
+               joints: Sequence[str] = ("LeftToeBase", "RightToeBase"),
+               height: float = CONTACT_HEIGHT["ToeBase"]) -> float:
+    """Mean horizontal speed of feet in contact with the floor, m/s (0 for a perfect motion).
+
+    motions: list of Motions or (N, T, J, 3) positions (then give fps).  For each
+    foot joint in ``joints`` and each frame pair (t, t+1) where the joint is below
+    ``height`` (default course_lib.motion.CONTACT_HEIGHT['ToeBase']) on both frames,
+    speed = ||(x, z)_{t+1} - (x, z)_t|| * fps.  Returns the mean over all such pairs
+    (0.0 if no foot ever touches the floor).  Unlike `Motion.contacts` there is no
+    speed gate: a sliding foot must count.
+    """
+    clips, skel, fps = _clips(motions, "motions", skeleton, fps)
+    fps = _need_fps(fps, "foot_skate")
+    idx = [skel.index(n) for n in joints]
+    speeds = []
+    for c in clips:
+        f = c[:, idx]  # (T, F, 3)
+        low = f[..., 1] < height
+        both = low[1:] & low[:-1]  # (T-1, F)
+        v = np.linalg.norm(np.diff(f[..., [0, 2]], axis=0), axis=-1) * fps  # (T-1, F)
+        speeds.append(v[both])
+    speeds = np.concatenate(speeds)
+    return float(speeds.mean()) if speeds.size else 0.0
+
+
+def ground_penetration(motions, skeleton: Skeleton | None = None) -> float:
+    """Mean depth below the floor (y = 0) of the lowest joint, m, over all frames.
+
+    motions: list of Motions or (N, T, J, 3) -> float.  Per frame
+    depth_t = max(0, -min_j y_{t,j}); joints above the floor contribute 0.
+    """
+    clips, _, _ = _clips(motions, "motions", skeleton)
+    depth = np.concatenate([np.maximum(0.0, -c[..., 1].min(-1)) for c in clips])
+    return float(depth.mean())
+
+
+def jitter(motions, fps: float | None = None, skeleton: Skeleton | None = None) -> float:
+    """Mean jerk magnitude, m/s^3: mean over clips, frames and joints of ||d^3 x / dt^3||.
+
+    motions: list of Motions or (N, T, J, 3) (give fps) -> float.  The jerk is the third
+    finite difference times fps^3, so the value depends on the frame rate: compare at equal fps.
+    """
+    clips, _, fps = _clips(motions, "motions", skeleton, fps)
+    fps = _need_fps(fps, "jitter")
+    if min(len(c) for c in clips) < 4:
+        raise ValueError("jitter: clips need at least 4 frames for a third difference")
+    jerk = np.concatenate([np.linalg.norm(np.diff(c, n=3, axis=0), axis=-1).ravel() for c in clips])
+    return float(jerk.mean() * fps**3)
+
+
+def bone_length_violation(motions, skeleton: Skeleton | None = None) -> float:
+    """Max relative bone-length deviation, unitless: max_{t,j} |l_{t,j} - L_j| / L_j.
+
+    motions: list of Motions (L from each Motion's skeleton) or (N, T, J, 3) positions
+    (L from ``skeleton``, default the canonical one) -> float.  l_{t,j} is the distance
+    from joint j to its parent on frame t; zero-length bones are skipped.
+    """
+    if isinstance(motions, (list, tuple)) and motions and all(isinstance(m, Motion) for m in motions):
+        return max(bone_length_violation([m.positions()], m.skeleton) for m in motions)
+    clips, skel, _ = _clips(motions, "motions", skeleton)
+    child = np.array([j for j in range(1, skel.num_joints)])
+    parent = np.array([skel.parents[j] for j in child])
+    rest = skel.bone_lengths()[child]
+    keep = rest > 1e-9
+    worst = 0.0
+    for c in clips:
+        length = np.linalg.norm(c[:, child] - c[:, parent], axis=-1)  # (T, J-1)
+        worst = max(worst, float((np.abs(length - rest) / np.where(keep, rest, 1.0))[:, keep].max()))
+    return worst
+
+
+# ----------------------------------------------------------------------------- control following
+
+
+def _per_frame_target(target, shape: tuple[int, int], name: str) -> np.ndarray:
+    tgt = _finite(_to_numpy(target, name), name)
+    try:
+        return np.broadcast_to(tgt, shape)
+    except ValueError:
+        raise ValueError(f"{name}: shape {tgt.shape} does not broadcast to the (clips, frames) {shape}") from None
+
+
+def speed_error(positions, target_speed, fps: float | None = None, skeleton: Skeleton | None = None) -> float:
+    """Mean |root horizontal speed - target speed|, m/s.
+
+    positions: (N, T, J, 3) or Motions; target_speed: (N, T), (T,) or a scalar, m/s -> float.
+    Root speed by central differences of the root's (x, z), times fps.
+    """
+    x, skel = _batch(positions, "positions", skeleton)
+    fps = _need_fps(fps if fps is not None else _motion_fps(positions), "speed_error")
+    if x.shape[1] < 2:
+        raise ValueError("speed_error: clips need at least 2 frames")
+    root = x[..., 0, :][..., [0, 2]]  # (N, T, 2)
+    speed = np.linalg.norm(np.gradient(root, axis=1), axis=-1) * fps  # (N, T)
+    return float(np.abs(speed - _per_frame_target(target_speed, speed.shape, "target_speed")).mean())
+
+
+def heading_error(positions, target_heading, skeleton: Skeleton | None = None) -> float:
+    """Mean absolute angle between the facing direction and a target heading, radians in [0, pi].
+
+    positions: (N, T, J, 3) or Motions; target_heading: (N, T), (T,) or scalar yaw about +Y
+    in radians, 0 = facing +Z, pi/2 = facing +X (the convention of `facing_yaw`) -> float.
+    """
+    yaw = facing_yaw(positions, skeleton)  # (N, T)
+    diff = yaw - _per_frame_target(target_heading, yaw.shape, "target_heading")
+    return float(np.abs(np.angle(np.exp(1j * diff))).mean())  # wrapped to [-pi, pi]
+
+
+def path_distance(positions, path, skeleton: Skeleton | None = None) -> float:
+    """Mean distance from the root's floor projection to a polyline path, metres.
+
+    positions: (N, T, J, 3) or Motions; path: (P, 2) floor points (x, z) or (P, 3) world
+    points (y ignored), P >= 1 -> float.  Distance = min over the path's segments.
+    """
+    x, _ = _batch(positions, "positions", skeleton)
+    pts = _finite(_to_numpy(path, "path"), "path")
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < 1:
+        raise ValueError(f"path: must be (P, 2) floor points (x, z) or (P, 3), got shape {pts.shape}")
+    pts = pts[:, [0, 2]] if pts.shape[1] == 3 else pts
+    a, b = (pts[:-1], pts[1:]) if len(pts) > 1 else (pts, pts)  # segments (S, 2)
+    q = x[..., 0, :][..., [0, 2]].reshape(-1, 1, 2)  # (N*T, 1, 2)
+    ab = b - a
+    u = np.clip(((q - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)  # (N*T, S)
+    d = np.linalg.norm(q - (a + u[..., None] * ab), axis=-1).min(-1)
+    return float(d.mean())
+
+
+def _motion_fps(x) -> float | None:
+    if isinstance(x, Motion):
+        return x.fps
+    if isinstance(x, (list, tuple)) and x and isinstance(x[0], Motion):
+        return x[0].fps
+    return None
+
+
+# ----------------------------------------------------------------------------- diversity and spectra
+
+
+def apd(samples, skeleton: Skeleton | None = None) -> float:
+    """Average pairwise distance between S samples generated for the same control, metres.
+
+    samples: (S, T, J, 3) or (N, S, T, J, 3) (N controls, S samples each), or a list of S
+    Motions -> float.  APD = mean_{n} 1/(S(S-1)) sum_{i != j} mean_{t,k} ||x_i[t,k] - x_j[t,k]||.
+    """
+    arr = None
+    if not (isinstance(samples, (list, tuple)) and samples and isinstance(samples[0], Motion)):
+        arr = _to_numpy(samples, "samples")
+    if arr is not None and arr.ndim == 5:
+        return float(np.mean([apd(group, skeleton) for group in arr]))
+    x, _ = _batch(samples if arr is None else arr, "samples", skeleton)  # (S, T, J, 3)
+    S = len(x)
+    if S < 2:
+        raise ValueError(f"apd: needs at least 2 samples, got {S}")
+    d = np.linalg.norm(x[:, None] - x[None, :], axis=-1).mean(axis=(2, 3))  # (S, S)
+    return float(d.sum() / (S * (S - 1)))
+
+
+def npss(pred, target) -> float:
+    """Normalized power spectrum similarity (Gopalakrishnan et al. 2019), lower is better, >= 0.
+
+    pred, target: (N, T, D) features (or (N, T, J, 3) positions, flattened to D = 3J) -> float.
+    Per clip n and feature d: power spectrum P = |rfft(x[n, :, d])|^2 normalised to sum 1,
+    emd_{n,d} = sum_f |cumsum(P_pred) - cumsum(P_target)|; NPSS is the average of emd
+    weighted by the target's total power in (n, d).
+    """
+    p, t = (_finite(_to_numpy(a, name), name) for a, name in ((pred, "pred"), (target, "target")))
+    if p.shape != t.shape:
+        raise ValueError(f"npss: pred and target have mismatched shapes {p.shape} vs {t.shape}")
+    if p.ndim == 4:
+        p, t = p.reshape(*p.shape[:2], -1), t.reshape(*t.shape[:2], -1)
+    if p.ndim != 3 or p.shape[1] < 2:
+        raise ValueError(f"npss: expected (N, T, D) or (N, T, J, 3) with T >= 2, got shape {p.shape}")
+    pow_p = np.abs(np.fft.rfft(p, axis=1)) ** 2  # (N, F, D)
+    pow_t = np.abs(np.fft.rfft(t, axis=1)) ** 2
+    tot_p, tot_t = pow_p.sum(1), pow_t.sum(1)  # (N, D)
+    if tot_t.sum() <= 0:
+        raise ValueError("npss: the target has zero power in every feature")
+    cdf_p = np.cumsum(pow_p / np.maximum(tot_p, 1e-300)[:, None], axis=1)
+    cdf_t = np.cumsum(pow_t / np.maximum(tot_t, 1e-300)[:, None], axis=1)
+    emd = np.abs(cdf_p - cdf_t).sum(1)  # (N, D)
+    return float((emd * tot_t).sum() / tot_t.sum())
