@@ -1,0 +1,107 @@
+# The course's commands.  Everything installs itself: on a fresh machine `make course` and
+# `make test` create .venv, install the pinned packages and generate the data first.
+#
+#   make course      execute every notebook (COURSE_MODE=class unless given) into site/*.html + site/index.html
+#   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
+#   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
+#   make data        the synthetic datasets in data/ (kept once made; `rm -r data` to regenerate)
+#   make student     JupyterLab on notebooks/
+#   make reproduce   retrain every checkpoint with the command in checkpoints/MANIFEST.json (COURSE_MODE=full)
+#   make bench       timings table (python -m course_lib.bench)
+#   make clean       remove site/ and caches (make distclean also removes .venv and data/)
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := help
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.stamp
+COURSE_MODE ?= class
+NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
+DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
+
+# Headless rendering (EGL, no X server) and quiet, deterministic plotting; see README "Headless rendering".
+HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true \
+	PYVISTA_JUPYTER_BACKEND=static MPLBACKEND=Agg
+
+.PHONY: help setup data course test lint unit nbval reproduce student bench clean distclean
+
+help:
+	@sed -n '3,12p' Makefile | sed 's/^# \{0,1\}//'
+
+# ---- environment -------------------------------------------------------------------------------
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet -e ".[dev]"
+	@touch $@
+	@echo "setup: $(VENV) ready ($$($(PY) --version))"
+
+# ---- data --------------------------------------------------------------------------------------
+# The scripts refuse to overwrite their outputs, so each output file is a target: made once, kept.
+data: $(DATA)
+
+data/locomotion.npz: | $(STAMP)
+	$(PY) data_scripts/make_locomotion.py --out $@
+
+data/actions.npz: | $(STAMP)
+	$(PY) data_scripts/make_actions.py --out $@
+
+data/locomotion_noisy.npz: data/locomotion.npz | $(STAMP)
+	$(PY) data_scripts/make_noisy.py --input $< --out $@
+
+# ---- the course --------------------------------------------------------------------------------
+# Executes copies of the notebooks (the committed ones are never overwritten) into site/ as HTML.
+course: setup data
+	@mkdir -p site; failed=""; \
+	for nb in $(NOTEBOOKS); do \
+	  start=$$(date +%s); echo "course: $$nb (COURSE_MODE=$(COURSE_MODE))"; \
+	  if COURSE_MODE=$(COURSE_MODE) $(HEADLESS) $(VENV)/bin/jupyter nbconvert --to html --execute \
+	       --ExecutePreprocessor.timeout=1800 --output-dir site "$$nb"; then \
+	    echo "course: $$nb done in $$(( $$(date +%s) - start )) s"; \
+	  else failed="$$failed $$nb"; rm -f "site/$$(basename "$${nb%.ipynb}").html"; fi; \
+	done; \
+	$(PY) tools/build_site.py --notebooks notebooks --site site --mode $(COURSE_MODE); \
+	if [ -n "$$failed" ]; then echo "course: FAILED:$$failed" >&2; exit 1; fi
+
+# ---- tests -------------------------------------------------------------------------------------
+test: lint unit nbval
+
+lint: setup
+	$(VENV)/bin/ruff check .
+
+unit: setup
+	@start=$$(date +%s); \
+	echo "COURSE_MODE=ci $(PY) -m pytest -n 2 tests"; \
+	COURSE_MODE=ci OMP_NUM_THREADS=1 $(HEADLESS) $(PY) -m pytest -n 2 tests; \
+	echo "unit: tests took $$(( $$(date +%s) - start )) s"
+
+# nbval re-executes each committed notebook in the venv's kernel and compares the
+# `# NBVAL_CHECK_OUTPUT` cells.  With no notebooks yet there is nothing to run (pytest would exit 5).
+nbval: setup
+	@if [ -z "$(NOTEBOOKS)" ]; then echo "nbval: no notebooks in notebooks/ yet"; else \
+	  start=$$(date +%s); echo "COURSE_MODE=ci $(PY) -m pytest --nbval-lax $(NOTEBOOKS)"; \
+	  COURSE_MODE=ci TQDM_DISABLE=1 OMP_NUM_THREADS=1 $(HEADLESS) $(PY) -m pytest -p no:xdist \
+	    --nbval-lax --nbval-current-env --nbval-cell-timeout=300 $(NOTEBOOKS); \
+	  echo "nbval: notebooks took $$(( $$(date +%s) - start )) s"; fi
+
+# ---- the rest ----------------------------------------------------------------------------------
+reproduce: setup data
+	COURSE_MODE=full $(HEADLESS) $(PY) tools/reproduce.py --manifest checkpoints/MANIFEST.json
+
+student: setup data
+	$(VENV)/bin/jupyter lab notebooks/
+
+bench: setup
+	$(PY) -m course_lib.bench
+
+clean:
+	rm -rf site .pytest_cache .ruff_cache .hypothesis
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+	find notebooks -name .ipynb_checkpoints -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV) data *.egg-info

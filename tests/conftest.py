@@ -1,0 +1,56 @@
+"""Shared pytest fixtures: where the repository, ../shared and the real CMU clip are.
+
+Also defaults the headless-rendering variables (only where unset) so that
+`pytest tests/test_render.py` works without an X server, as under `make test`.
+These are set before any test module imports pyvista or matplotlib.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+for _name, _value in {
+    "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow",
+    "PYVISTA_OFF_SCREEN": "true",
+    "PYVISTA_JUPYTER_BACKEND": "static",
+    "MPLBACKEND": "Agg",
+}.items():
+    os.environ.setdefault(_name, _value)
+
+
+def find_shared_dir(start: Path = REPO_ROOT) -> Path:
+    """The `shared/` folder beside the repository (../shared), or beside one of its parents."""
+    for folder in [start, *start.parents]:
+        candidate = folder.parent / "shared"
+        if (candidate / "data").is_dir():
+            return candidate
+    raise FileNotFoundError(f"no shared/data folder beside {start} or any parent (expected {start.parent / 'shared'})")
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    """The repository's root folder (holds pyproject.toml)."""
+    return REPO_ROOT
+
+
+@pytest.fixture(scope="session")
+def shared_dir() -> Path:
+    """../shared: DESIGN.md, papers/, data/ (fails with a clear message where it is missing)."""
+    try:
+        return find_shared_dir()
+    except FileNotFoundError as err:
+        pytest.fail(str(err))
+
+
+@pytest.fixture(scope="session")
+def cmu_bvh_path(shared_dir: Path) -> Path:
+    """The real CMU clip ../shared/data/cmu_07_01_walk.bvh (120 fps, 31 joints)."""
+    path = shared_dir / "data" / "cmu_07_01_walk.bvh"
+    if not path.is_file():
+        pytest.fail(f"the CMU clip {path} is missing")
+    return path

@@ -1,0 +1,243 @@
+"""Packaging: pyproject.toml and environment.yml pin the same packages; course_lib imports cleanly;
+the Makefile's helpers (tools/build_site.py, tools/reproduce.py) do what `make course`/`make reproduce` need."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import os
+import re
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tools"))
+
+import build_site  # noqa: E402  (tools/ is not a package)
+import reproduce  # noqa: E402
+
+PIN = re.compile(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==([A-Za-z0-9.+!-]+)$")
+
+
+def exact_pins(requirements: list[str]) -> dict[str, str]:
+    """['Torch==2.13.0', ...] -> {'torch': '2.13.0'}; ValueError naming any requirement that is not `name==version`."""
+    pins = {}
+    for req in requirements:
+        match = PIN.match(req.replace(" ", ""))
+        if match is None:
+            raise ValueError(f"{req!r} is not an exact pin name==version")
+        pins[re.sub(r"[-_.]+", "-", match.group(1)).lower()] = match.group(2)
+    return pins
+
+
+def pin_differences(a: dict[str, str], b: dict[str, str]) -> list[str]:
+    """Human-readable differences between two {name: version} dicts (empty when equal)."""
+    out = [f"{name}: {a.get(name)} vs {b.get(name)}" for name in sorted(set(a) | set(b)) if a.get(name) != b.get(name)]
+    return out
+
+
+def pyproject() -> dict:
+    return tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
+
+
+def environment() -> dict:
+    return yaml.safe_load((REPO / "environment.yml").read_text(encoding="utf-8"))
+
+
+def environment_pip(env: dict) -> list[str]:
+    """The `pip:` list of environment.yml."""
+    pips = [item["pip"] for item in env["dependencies"] if isinstance(item, dict) and "pip" in item]
+    assert len(pips) == 1, "environment.yml must have exactly one `pip:` section"
+    return pips[0]
+
+
+def test_exact_pins_parses_and_rejects():
+    assert exact_pins(["Scikit_Image==0.26.0", "torch == 2.13.0"]) == {"scikit-image": "0.26.0", "torch": "2.13.0"}
+    for bad in ["torch>=2.13", "torch", "torch==2.13.*,<3"]:
+        with pytest.raises(ValueError, match="not an exact pin"):
+            exact_pins([bad])
+    assert pin_differences({"a": "1", "b": "2"}, {"a": "1", "b": "3", "c": "4"}) == ["b: 2 vs 3", "c: None vs 4"]
+
+
+def test_pyproject_pins_every_dependency_exactly():
+    project = pyproject()["project"]
+    runtime = exact_pins(project["dependencies"])
+    dev = exact_pins(project["optional-dependencies"]["dev"])
+    assert runtime["torch"] == "2.13.0", "torch must stay 2.13.0 (the CPU build on local disk)"
+    assert not set(runtime) & set(dev), "a package is pinned both in dependencies and in [dev]"
+
+
+def test_environment_yml_mirrors_pyproject():
+    project = pyproject()["project"]
+    env = environment()
+    wanted = exact_pins(project["dependencies"] + project["optional-dependencies"]["dev"])
+    pip_list = environment_pip(env)
+    assert "-e ." in pip_list, "environment.yml must install course_lib itself (`-e .`)"
+    got = exact_pins([req for req in pip_list if req != "-e ."])
+    assert pin_differences(wanted, got) == [], "pyproject.toml (left) and environment.yml (right) disagree"
+    assert "python=3.11" in env["dependencies"] and "pip" in env["dependencies"]
+    assert project["requires-python"].startswith(">=3.11")  # tomllib; the on-disk torch wheel is cp311
+
+
+def test_version_matches_pyproject():
+    import course_lib
+
+    version = pyproject()["project"]["version"]
+    assert course_lib.__version__ == version
+    assert importlib.metadata.version("course_lib") == version, "installed metadata is stale: run `make setup`"
+
+
+# The child imports the third-party libraries first (their caches and messages are not ours),
+# snapshots files, environment and global RNG/torch state, prints a marker, then imports every
+# course_lib module.  Anything printed after the marker, or any change, is an import-time side effect.
+IMPORT_PROBE = r"""
+import importlib, json, os, pkgutil, sys
+for lib in ["numpy", "scipy", "torch", "jax", "jax.numpy", "matplotlib", "matplotlib.pyplot", "pyvista",
+            "skimage", "imageio", "PIL", "tqdm"]:
+    try:
+        importlib.import_module(lib)
+    except ImportError:
+        pass
+import numpy as np, torch
+
+package_name, watched = sys.argv[2], sys.argv[3:]
+
+def files(roots):
+    found = {}
+    for root in roots:
+        for folder, dirs, names in os.walk(root):
+            dirs[:] = [d for d in dirs if d != "__pycache__"]
+            for name in names:
+                path = os.path.join(folder, name)
+                found[path] = os.stat(path).st_mtime_ns
+    return found
+
+def state():
+    return {"files": files(watched), "env": dict(os.environ), "np_rng": repr(np.random.get_state()),
+            "torch_seed": torch.initial_seed(), "torch_dtype": str(torch.get_default_dtype()),
+            "torch_threads": torch.get_num_threads(), "cwd": os.getcwd()}
+
+before = state()
+print("---MARKER---", flush=True); print("---MARKER---", file=sys.stderr, flush=True)
+package = importlib.import_module(package_name)
+names = [m.name for m in pkgutil.walk_packages(package.__path__, package_name + ".") if not m.name.endswith("__main__")]
+for name in names:
+    importlib.import_module(name)
+sys.stdout.flush(); sys.stderr.flush()
+after = state()
+changed = {key: (sorted(set(before[key].items()) ^ set(after[key].items())) if isinstance(before[key], dict)
+                 else [before[key], after[key]]) for key in before if before[key] != after[key]}
+with open(sys.argv[1], "w") as fh:
+    json.dump({"modules": [package_name] + names, "changed": changed}, fh, default=str)
+"""
+
+
+def import_probe(package: str, tmp_path: Path, watched: list[Path], pythonpath: Path | None = None) -> dict:
+    """Import every module of `package` in a fresh interpreter (cwd = an empty folder):
+    {'modules', 'changed', 'stdout', 'stderr'}, the output being only what was printed during those imports."""
+    cwd, report = tmp_path / "cwd", tmp_path / "report.json"
+    cwd.mkdir()
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("VTK_", "PYVISTA_", "COURSE_MODE"))}
+    env.update(MPLCONFIGDIR=str(tmp_path / "mpl"), MPLBACKEND="Agg")
+    if pythonpath is not None:
+        env["PYTHONPATH"] = str(pythonpath)
+    args = [sys.executable, "-c", IMPORT_PROBE, str(report), package, str(cwd), *map(str, watched)]
+    proc = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, f"importing {package} failed:\n{proc.stderr[-3000:]}"
+    result = json.loads(report.read_text())
+    result["stdout"] = proc.stdout.split("---MARKER---\n", 1)[1]
+    result["stderr"] = proc.stderr.split("---MARKER---\n", 1)[1]
+    return result
+
+
+def test_import_probe_catches_side_effects(tmp_path):
+    pkg = tmp_path / "src" / "noisy_pkg"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "chatty.py").write_text("import os, sys\nprint('hello')\nsys.stderr.write('warn\\n')\n"
+                                   "os.environ['PYVISTA_OFF_SCREEN'] = 'true'\nopen('out.txt', 'w').close()\n")
+    (pkg / "seeding.py").write_text("import numpy, torch\nnumpy.random.seed(0)\ntorch.manual_seed(0)\n"
+                                    "torch.set_default_dtype(torch.float64)\n")
+    result = import_probe("noisy_pkg", tmp_path, [], pythonpath=tmp_path / "src")
+    assert result["modules"] == ["noisy_pkg", "noisy_pkg.chatty", "noisy_pkg.seeding"]
+    assert (result["stdout"], result["stderr"]) == ("hello\n", "warn\n")
+    assert set(result["changed"]) == {"files", "env", "np_rng", "torch_seed", "torch_dtype"}
+    assert result["changed"]["env"] == [["PYVISTA_OFF_SCREEN", "true"]]
+
+
+def test_every_module_imports_without_side_effects(tmp_path):
+    result = import_probe("course_lib", tmp_path, [REPO / "course_lib", REPO / "data"])
+    assert result["stdout"] == "", "course_lib printed to stdout at import"
+    assert result["stderr"] == "", "course_lib printed to stderr at import"
+    assert result["changed"] == {}, f"importing course_lib changed global state: {result['changed']}"
+    expected = {f"course_lib.{p.stem}" for p in (REPO / "course_lib").glob("*.py") if p.stem != "__init__"}
+    assert expected - {"course_lib.__main__"} <= set(result["modules"])
+
+
+def write_notebook(path: Path, title: str) -> None:
+    cells = [{"cell_type": "markdown", "metadata": {}, "source": [f"# {title}\n", "text"]}]
+    path.write_text(json.dumps({"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
+
+
+def test_build_site_lists_lessons_in_order_and_marks_unbuilt(tmp_path):
+    notebooks, site = tmp_path / "notebooks", tmp_path / "site"
+    notebooks.mkdir()
+    site.mkdir()
+    write_notebook(notebooks / "01_vae_basics.ipynb", "Lesson 01 <VAE> basics")
+    write_notebook(notebooks / "00_data.ipynb", "Lesson 00: data")
+    (site / "00_data.html").write_text("<html></html>")
+    assert build_site.main(["--notebooks", str(notebooks), "--site", str(site), "--mode", "ci"]) == 0
+    index = (site / "index.html").read_text()
+    assert index.index("Lesson 00: data") < index.index("Lesson 01 &lt;VAE&gt; basics")
+    assert '<a href="00_data.html">Lesson 00: data</a>' in index
+    assert "01_vae_basics</code> &mdash; <em>not built</em>" in index and "COURSE_MODE=ci" in index
+
+
+def test_reproduce_runs_manifest_commands_in_order(tmp_path, capsys):
+    log = tmp_path / "log.txt"
+    manifest = tmp_path / "checkpoints" / "MANIFEST.json"
+    manifest.parent.mkdir()
+    append = "python -c \"import sys; open('log.txt', 'a').write(sys.argv[1] + chr(10))\" "
+    entries = {"b_model": {"file": "b.pt", "command": append + "b"}, "a_model": {"command": append + "a"}}
+    manifest.write_text(json.dumps(entries))
+    assert reproduce.main(["--manifest", str(manifest)]) == 0
+    assert log.read_text().splitlines() == ["b", "a"]  # manifest order, run from the manifest's parent folder
+    assert "reproduce: [b_model] $ python -c" in capsys.readouterr().out
+    assert reproduce.main(["--manifest", str(manifest), "--only", "a_model"]) == 0
+    assert log.read_text().splitlines() == ["b", "a", "a"]
+
+
+def test_reproduce_stops_at_failure_and_rejects_bad_manifests(tmp_path):
+    manifest = tmp_path / "MANIFEST.json"
+    manifest.write_text(json.dumps([{"name": "bad", "command": "exit 3"}, {"name": "never", "command": "touch x"}]))
+    assert reproduce.main(["--manifest", str(manifest), "--root", str(tmp_path)]) == 1
+    assert not (tmp_path / "x").exists()
+    assert reproduce.main(["--manifest", str(manifest), "--root", str(tmp_path), "--keep-going"]) == 1
+    assert (tmp_path / "x").exists()
+    manifest.write_text(json.dumps({"m": {"file": "m.pt"}}))
+    with pytest.raises(ValueError, match="entry 'm' has no 'command'"):
+        reproduce.read_manifest(manifest)
+    assert reproduce.main(["--manifest", str(tmp_path / "missing.json")]) == 0
+
+
+def test_makefile_targets_run_the_right_commands():
+    def dry(*targets: str) -> str:
+        proc = subprocess.run(["make", "-n", "-B", *targets], cwd=REPO, capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout
+
+    data = dry("data")
+    for script in ["make_locomotion.py --out data/locomotion.npz", "make_actions.py --out data/actions.npz",
+                   "make_noisy.py"]:
+        assert script in data
+    assert "pip install --quiet -e \".[dev]\"" in data  # -B: the setup recipe is part of the plan
+    course = dry("course", "COURSE_MODE=full")
+    assert "COURSE_MODE=full" in course and "--ExecutePreprocessor.timeout=1800 --output-dir site" in course
+    assert "tools/build_site.py" in course
+    test = dry("test")
+    assert "ruff check ." in test and "pytest -n 2 tests" in test
