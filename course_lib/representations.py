@@ -94,8 +94,8 @@ def _check_features(features, name: str, num_joints: int) -> np.ndarray:
 # --- the root's floor frame -------------------------------------------------------------
 
 
-def _root_ypr(motion: Motion) -> np.ndarray:
-    """motion -> (T, 3) (yaw, pitch, roll) of the root rotation, R = R_y(yaw) R_x(pitch) R_z(roll)."""
+def root_yaw_pitch_roll(motion: Motion) -> np.ndarray:
+    """motion -> (T, 3) (yaw, pitch, roll) of the root rotation, R = R_y(yaw) R_x(pitch) R_z(roll); yaw = heading."""
     return quat_to_euler(torch.from_numpy(motion.rotations[:, 0]), "YXZ").numpy()
 
 
@@ -117,7 +117,7 @@ def _wrap(a: np.ndarray) -> np.ndarray:
 
 def root_start(motion: Motion) -> tuple[float, float, float]:
     """The first frame's floor transform (x0, z0, yaw0), the decoders' ``init``."""
-    yaw0 = float(_root_ypr(motion[:1])[0, 0])
+    yaw0 = float(root_yaw_pitch_roll(motion[:1])[0, 0])
     return float(motion.root_positions[0, 0]), float(motion.root_positions[0, 2]), yaw0
 
 
@@ -147,7 +147,7 @@ def integrate_root(d: np.ndarray, dyaw: np.ndarray, init=(0.0, 0.0, 0.0)) -> tup
 
 def _root_motion(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """motion -> ypr (T, 3), floor displacement per frame (T, 2) (sideways, forward), dyaw (T,)."""
-    ypr = _root_ypr(motion)
+    ypr = root_yaw_pitch_roll(motion)
     d, dyaw = root_deltas(motion.root_positions[:, [0, 2]], ypr[:, 0])
     return ypr, d, dyaw
 
