@@ -141,7 +141,7 @@ def _batches(data, steps_per_epoch: int | None):
     """Yield epochs, each an iterator of batches, from a DataLoader/iterable or a batch-making callable."""
     if callable(data) and not hasattr(data, "__iter__"):
         if steps_per_epoch is None:
-            raise ValueError("data is a callable: pass steps_per_epoch (the calls that make one epoch)")
+            raise ValueError("data is a callable and epochs= was given: pass steps_per_epoch (calls per epoch)")
         while True:
             yield (data() for _ in range(steps_per_epoch))
     elif hasattr(data, "__iter__"):
@@ -200,6 +200,8 @@ def fit(model: torch.nn.Module, data, *, steps: int | None = None, epochs: int |
     """
     if steps is None and epochs is None:
         raise ValueError("fit needs steps= or epochs= (or both; it stops at whichever comes first)")
+    if callable(data) and not hasattr(data, "__iter__") and steps_per_epoch is None and epochs is None:
+        steps_per_epoch = steps  # a batch-making callable with steps only: the whole run is one epoch
     if seed is not None:
         seed_everything(seed)
     params = [p for p in model.parameters() if p.requires_grad]
