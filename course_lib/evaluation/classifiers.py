@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import time
 from pathlib import Path
 
@@ -148,3 +149,129 @@ def accuracy(classifier: MotionClassifier, motions: list[Motion]) -> float:
     x = torch.from_numpy(motions_to_batch(motions, classifier.config))
     y = torch.from_numpy(labels_of(motions, classifier.config))
     return float((classifier.eval()(x).argmax(-1) == y).float().mean())
+
+
+# ----------------------------------------------------------------------------- data and training
+
+
+@dataclasses.dataclass
+class ClassifierData:
+    """Which synthetic clips train and test the classifiers: subjects of make_subjects(num_subjects, seed).
+
+    s00..s{n-test-1} are the training subjects (the "actions" dataset's population); the
+    classifiers train on the first half of them (Ghorbani: "50% of training data"); the
+    last ``test_subjects`` are held out.  Clip k = 0 of (subject, action, style) is the very
+    clip of datasets.generate_actions_set; k >= 1 are extra takes with their own seeds.
+    """
+
+    num_subjects: int = 16  # population size
+    test_subjects: int = 4  # the last subjects, held out for accuracy and tests
+    takes: int = 3  # clips per (subject, action, style) for training
+    seed: int = 0  # population and clip seeds (datasets' default)
+    generate_fps: float = 120.0  # generation frame rate (DESIGN: generate at 120 fps)
+
+    def split(self) -> tuple[list, list]:
+        """-> (classifier-training subjects, held-out subjects)."""
+        from course_lib.synthetic import make_subjects
+
+        subjects = make_subjects(self.num_subjects, self.seed)
+        n_train = self.num_subjects - self.test_subjects
+        return subjects[: n_train // 2], subjects[n_train:]
+
+    def motions(self, subjects, takes: int = 1, progress: bool = False) -> list[Motion]:
+        """takes clips per (subject, action, style), labelled by the generator."""
+        from tqdm.auto import tqdm
+
+        from course_lib.datasets import _clip_seed
+        from course_lib.synthetic import generate_action
+
+        jobs = [(s, a, st, k) for s in subjects for a in range(len(ACTIONS)) for st in range(len(STYLES))
+                for k in range(takes)]
+        out = []
+        for s, a, st, k in tqdm(jobs, disable=not progress, desc="clips", leave=False):
+            sid = int(s.name[1:])
+            seed = _clip_seed(self.seed, sid, a, st) if k == 0 else _clip_seed(self.seed, sid, a, st, k)
+            out.append(generate_action(s, ACTIONS[a], STYLES[st], fps=self.generate_fps, seed=seed))
+        return out
+
+
+def _window_sampler(feats: list[np.ndarray], labels: np.ndarray, window: int, batch_size: int,
+                    rng: np.random.Generator):
+    """-> callable returning a batch (x (B, window, C), y (B,)) of random windows of random clips."""
+    def sample():
+        idx = rng.integers(len(feats), size=batch_size)
+        starts = [rng.integers(0, len(feats[i]) - window + 1) for i in idx]
+        x = np.stack([feats[i][s:s + window] for i, s in zip(idx, starts, strict=True)]).astype(np.float32)
+        return torch.from_numpy(x), torch.from_numpy(labels[idx])
+    return sample
+
+
+def train_classifier(task: str, data: ClassifierData | None = None, steps: int = 400, batch_size: int = 32,
+                     lr: float = 5e-3, seed: int = 0, progress: bool = True):
+    """Train the `task` classifier on half of the training subjects; -> (model, history, held-out accuracy).
+
+    Adam, lr 5e-3 as Ghorbani sec. 4.2, on random 2-s windows; evaluated on the centre
+    window of every clip of the held-out subjects.
+    """
+    from course_lib.training import fit, seed_everything
+
+    data = data or ClassifierData()
+    config = ClassifierConfig.for_task(task)
+    seed_everything(seed)
+    train_subjects, test_subjects = data.split()
+    train = data.motions(train_subjects, data.takes, progress)
+    feats = [encode_quaternion_root(m if m.fps == config.fps else m.resample(config.fps)) for m in train]
+    window = min(config.window, min(len(f) for f in feats))
+    model = MotionClassifier(dataclasses.replace(config, window=window))
+    frames = np.concatenate(feats)
+    model.mean.copy_(torch.from_numpy(frames.mean(0)).float())
+    model.std.copy_(torch.from_numpy(frames.std(0) + 1e-3).float())  # + 1e-3: constant channels
+    sampler = _window_sampler(feats, labels_of(train, config), window, batch_size, np.random.default_rng(seed))
+    history = fit(model, sampler, steps=steps, steps_per_epoch=50, lr=lr, seed=seed, progress=progress,
+                  desc=f"{task} classifier")
+    return model.eval(), history, accuracy(model, data.motions(test_subjects, 1, progress))
+
+
+def _main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m course_lib.evaluation.classifiers", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--train", choices=("action", "style"), help="train this classifier and save it")
+    parser.add_argument("--out", help="checkpoint path (default checkpoints/<task>_classifier.pt)")
+    parser.add_argument("--steps", type=int, default=400, help="optimiser steps (default 400)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--eval", action="store_true", help="print held-out accuracy of the shipped classifiers")
+    args = parser.parse_args(argv)
+    if not args.train and not args.eval:
+        parser.error("give --train {action,style} and/or --eval")
+    if args.train:
+        _train_and_save(args)
+    if args.eval:
+        for task, acc in evaluate_shipped().items():
+            print(f"{task} classifier: held-out accuracy {acc:.4f}")
+
+
+def _train_and_save(args) -> None:
+    from course_lib.training import save_checkpoint
+
+    out = Path(args.out) if args.out else checkpoint_path(args.train)
+    t0 = time.perf_counter()
+    model, history, acc = train_classifier(args.train, steps=args.steps, seed=args.seed)
+    seconds = time.perf_counter() - t0
+    shown = args.out or os.path.relpath(out, CHECKPOINT_DIR.parent)
+    command = (f"python -m course_lib.evaluation.classifiers --train {args.train} --out {shown} "
+               f"--steps {args.steps} --seed {args.seed}")
+    save_checkpoint(model, model.config, out, command=command, overwrite=True,
+                    metrics={"heldout_accuracy": round(acc, 4), "train_seconds": round(seconds, 1)})
+    print(f"{args.train} classifier: held-out accuracy {acc:.4f}, {history.num_steps} steps, "
+          f"{seconds:.1f} s (data + training + evaluation) -> {out}")
+
+
+def evaluate_shipped(data: ClassifierData | None = None) -> dict[str, float]:
+    """{'action': acc, 'style': acc} of the shipped checkpoints on the held-out subjects' clips."""
+    data = data or ClassifierData()
+    test = data.motions(data.split()[1])
+    return {task: accuracy(load_classifier(task), test) for task in ("action", "style")}
+
+
+if __name__ == "__main__":
+    _main()
