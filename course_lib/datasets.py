@@ -17,12 +17,15 @@ Taught in notebooks/00_data_and_skeletons.ipynb.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import json
+import multiprocessing
 import os
 import zipfile
 from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +49,8 @@ STYLES = ("A", "B")
 
 
 def _jsonable(x):
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        return {f.name: getattr(x, f.name) for f in dataclasses.fields(x)}
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, np.generic):
@@ -85,11 +90,24 @@ def write_npz(arrays: dict[str, np.ndarray], path, *, overwrite: bool = False) -
     return path
 
 
+def _frame_meta_keys(motions: list[Motion]) -> list[str]:
+    """Meta keys that every clip has as a per-frame array (T, ...) of one trailing shape and dtype kind."""
+    def sig(m, k):
+        v = m.meta.get(k)
+        ok = isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == len(m)
+        return (v.shape[1:], v.dtype.kind) if ok else None
+    keys = sorted(motions[0].meta)
+    return [k for k in keys if sig(motions[0], k) is not None and all(sig(m, k) == sig(motions[0], k)
+                                                                          for m in motions)]
+
+
 def save_motions(motions: list[Motion], path, *, meta: dict | None = None, overwrite: bool = False) -> Path:
     """Store clips in one .npz: rotations (N, J, 4) float32 and root_positions (N, 3) float64 concatenated over
     all frames, offsets (C+1,) frame offsets, per-clip fps, labels ('' = None), skeleton offsets (C, J, 3),
     End Site offsets (C, E, 3), JSON meta per clip and for the file, schema_version.
 
+    Per-frame meta arrays (T, ...) that all clips have are concatenated like the frames
+    ("frame_meta__<key>"); other meta goes to JSON (arrays and dataclasses come back as lists and dicts).
     All clips must share joint names and parents (bone lengths may differ).
     """
     if not motions:
@@ -112,9 +130,14 @@ def save_motions(motions: list[Motion], path, *, meta: dict | None = None, overw
         "end_site_joints": np.array(ends, dtype=np.int64),
         "end_site_offsets": np.stack([np.stack([m.skeleton.end_sites[j] for j in ends]) if ends else np.zeros((0, 3))
                                       for m in motions]),
-        "clip_meta": np.array([_json(m.meta) for m in motions]),
         "file_meta": np.array(_json(meta or {})),
     }
+    frame_keys = _frame_meta_keys(motions)
+    arrays["frame_meta_keys"] = np.array(frame_keys, dtype=str)
+    for k in frame_keys:
+        arrays[f"frame_meta__{k}"] = np.concatenate([m.meta[k] for m in motions])
+    arrays["clip_meta"] = np.array([_json({k: v for k, v in m.meta.items() if k not in frame_keys})
+                                    for m in motions])
     for label in ("action", "style", "subject"):
         arrays[label] = np.array([getattr(m, label) or "" for m in motions])
     return write_npz(arrays, path, overwrite=overwrite)
@@ -152,8 +175,10 @@ def load_motions(path) -> list[Motion]:
         sk = Skeleton(names, parents, d["skeleton_offsets"][c], dict(zip(ends.tolist(), d["end_site_offsets"][c],
                                                                            strict=True)))
         labels = {k: (str(d[k][c]) or None) for k in ("action", "style", "subject")}
+        meta = json.loads(str(d["clip_meta"][c]))
+        meta.update({str(k): d[f"frame_meta__{k}"][off[c]:off[c + 1]] for k in d["frame_meta_keys"]})
         out.append(Motion(d["rotations"][off[c]:off[c + 1]], d["root_positions"][off[c]:off[c + 1]], sk,
-                          float(d["fps"][c]), meta=json.loads(str(d["clip_meta"][c])), **labels))
+                          float(d["fps"][c]), meta=meta, **labels))
     return out
 
 
@@ -306,34 +331,63 @@ def _clip_seed(seed: int, *keys: int) -> int:
 
 
 def _at_fps(m: Motion, fps: float) -> Motion:
-    return m if m.fps == fps else m.resample(fps)
+    """m resampled to fps, per-frame meta arrays included (nearest frame)."""
+    from course_lib.synthetic.locomotion import resample_motion
+
+    return resample_motion(m, fps)
+
+
+def resample_clips(motions: list[Motion], fps: float | None) -> list[Motion]:
+    """The clips at `fps` (unchanged if None), per-frame meta arrays resampled too."""
+    return list(motions) if fps is None else [_at_fps(m, fps) for m in motions]
+
+
+def _map(fn, jobs: list, workers: int, desc: str, progress: bool) -> list:
+    """[fn(job) for job in jobs] in order, in `workers` processes (spawned: safe after torch was used)."""
+    bar = dict(total=len(jobs), desc=desc, disable=not progress)
+    if workers <= 1 or len(jobs) < 2:
+        return [fn(j) for j in tqdm(jobs, **bar)]
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=ctx) as ex:
+        return list(tqdm(ex.map(fn, jobs, chunksize=max(1, min(16, len(jobs) // (4 * workers)))), **bar))
+
+
+def _locomotion_clip(job) -> Motion:
+    from course_lib.synthetic import generate_locomotion
+
+    subject, duration, fps, seed = job
+    return generate_locomotion(subject, None, duration=duration, fps=fps, seed=seed)
+
+
+def _action_clip(job) -> Motion:
+    from course_lib.synthetic import generate_action
+
+    subject, action, style, fps, seed = job
+    return generate_action(subject, action, style, fps=fps, seed=seed)
 
 
 def generate_locomotion_set(n_clips: int, seed: int = 0, fps: float = 60.0, duration: float = 4.0,
-                            n_subjects: int | None = None, progress: bool = False) -> list[Motion]:
-    """n_clips locomotion clips (random control programs), generated at 120 fps then resampled to fps.
-
-    Clip i belongs to subject i mod n_subjects (default: about 1 subject per 40 clips, at least 8).
-    """
-    from course_lib.synthetic import generate_locomotion, make_subjects
+                            n_subjects: int | None = None, workers: int = 1, progress: bool = False) -> list[Motion]:
+    """n_clips locomotion clips, each from its own random control program (synthetic.generate_locomotion,
+    generated at 120 fps and resampled to fps).  Clip i belongs to subject i mod n_subjects (default:
+    one subject per 40 clips, between 8 and 60).  The result does not depend on `workers`."""
+    from course_lib.synthetic import make_subjects
 
     n_subjects = n_subjects or max(8, min(60, n_clips // 40))
     subjects = make_subjects(n_subjects, seed)
-    return [_at_fps(generate_locomotion(subjects[i % n_subjects], None, duration=duration, fps=120,
-                                        seed=_clip_seed(seed, i)), fps)
-            for i in tqdm(range(n_clips), desc="locomotion", disable=not progress)]
+    jobs = [(subjects[i % n_subjects], duration, fps, _clip_seed(seed, i)) for i in range(n_clips)]
+    return _map(_locomotion_clip, jobs, workers, "locomotion", progress)
 
 
 def generate_actions_set(n_subjects: int, seed: int = 0, fps: float = 60.0, actions=ACTIONS, styles=STYLES,
-                         progress: bool = False) -> list[Motion]:
-    """One clip per (subject, action, style), generated at 120 fps then resampled to fps."""
-    from course_lib.synthetic import generate_action, make_subjects
+                         workers: int = 1, progress: bool = False) -> list[Motion]:
+    """One clip per (subject, action, style) (synthetic.generate_action); independent of `workers`."""
+    from course_lib.synthetic import make_subjects
 
-    jobs = [(s, a, st) for s in range(n_subjects) for a in range(len(actions)) for st in range(len(styles))]
     subjects = make_subjects(n_subjects, seed)
-    return [_at_fps(generate_action(subjects[s], actions[a], styles[st], fps=120, seed=_clip_seed(seed, s, a, st)),
-                    fps)
-            for s, a, st in tqdm(jobs, desc="actions", disable=not progress)]
+    jobs = [(subjects[s], a, st, fps, _clip_seed(seed, s, i, k)) for s in range(n_subjects)
+            for i, a in enumerate(actions) for k, st in enumerate(styles)]
+    return _map(_action_clip, jobs, workers, "actions", progress)
 
 
 def noisy_copies(motions: list[Motion], seed: int = 0, progress: bool = False) -> list[Motion]:
