@@ -383,7 +383,17 @@ def _hierarchy_lines(skeleton: Skeleton, orders: list[str], scale: float, fmt: s
     return out
 
 
+def _depth_first(skeleton: Skeleton) -> list[int]:
+    order, stack = [], [0]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(reversed(skeleton.children(j)))
+    return order
+
+
 def _frame_lines(motion: Motion, orders: list[str], scale: float, fmt: str) -> list[str]:
+    """-> one line per frame: root position, then each joint's angles, joints depth-first as in the HIERARCHY."""
     T, J = motion.rotations.shape[:2]
     rot = torch.from_numpy(motion.rotations)
     angles = np.zeros((T, J, 3))
@@ -391,7 +401,7 @@ def _frame_lines(motion: Motion, orders: list[str], scale: float, fmt: str) -> l
         js = [j for j, o in enumerate(orders) if o == order]
         angles[:, js] = np.degrees(quat_to_euler(rot[:, js], order).numpy())
     root = (motion.root_positions - motion.skeleton.offsets[0]) * scale  # BVH: world = OFFSET + channels
-    values = np.concatenate([root, angles.reshape(T, 3 * J)], axis=1)  # (T, 3 + 3J)
+    values = np.concatenate([root, angles[:, _depth_first(motion.skeleton)].reshape(T, 3 * J)], axis=1)  # (T, 3+3J)
     row = " ".join([fmt] * values.shape[1])
     return [row % tuple(v) for v in values]
 
@@ -417,8 +427,9 @@ def write_bvh(motion: Motion, path: str | os.PathLike, order: str | list[str] = 
     """Write `motion` as a standard BVH file (read by Blender, MotionBuilder, bvhio...) and return its path.
 
     Root: 6 channels (X/Y/Z position, then rotations); other joints 3 rotation
-    channels; angles in degrees in `order` (one order, or one per joint, e.g.
-    ``motion.meta["channel_orders"]``); End Sites from `skeleton.end_sites`,
+    channels; joints in depth-first order (the skeleton's own order when it is
+    depth-first, as the canonical one); angles in degrees in `order` (one order,
+    or one per joint, e.g. ``motion.meta["channel_orders"]``); End Sites from `skeleton.end_sites`,
     or a short default one on leaf joints without.  Lengths are multiplied by
     `scale` (e.g. ``1 / CMU_SCALE`` for CMU units).  Refuses to replace an
     existing file unless `overwrite`; writes a temporary file then renames it,
@@ -508,6 +519,15 @@ def _end_sites(src: Skeleton, names, s: list[int], leaves, sources: dict[str, st
     return ends
 
 
+def _fixed_offsets(v: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """v (T, K, 3) offsets seen on each frame, rest (K, 3) -> (K, 3): the rest-pose vector where
+    every frame agrees with it (to rounding), else the mean over frames (exact if v is constant)."""
+    if not len(v):
+        return rest
+    agrees = np.abs(v - rest).max(0).max(-1) <= 1e-9 * (1 + np.linalg.norm(rest, axis=-1))  # (K,)
+    return np.where(agrees[:, None], rest, v.mean(0))
+
+
 def retarget_names(motion: Motion, names, parents, mapping: dict[str, str],
                    end_site_sources: dict[str, str] | None = None, tol: float = 1e-5) -> Motion:
     """Motion on a source skeleton -> the same motion on a sub-skeleton `names`/`parents`.
@@ -515,7 +535,8 @@ def retarget_names(motion: Motion, names, parents, mapping: dict[str, str],
     mapping: target joint -> source joint.  Each target joint keeps its source
     joint's GLOBAL rotation and position; its local rotation is
     r'_c = G_p^-1 G_c (p = its target parent's source joint), its offset is the
-    vector v_c(t) = G_p^-1 (x_c - x_p) averaged over frames.  Removed joints between
+    vector v_c(t) = G_p^-1 (x_c - x_p): the rest-pose vector (sum of the offsets between)
+    where all frames agree with it, else its average over frames.  Removed joints between
     p and c fold into r'_c; v_c(t) is constant, so FK reproduces the source
     positions exactly, unless a removed joint with a non-zero offset (or whose child
     has one) rotates over time: then no fixed offset can, and the remaining error
@@ -535,7 +556,7 @@ def retarget_names(motion: Motion, names, parents, mapping: dict[str, str],
     v = quat_rotate(g_par_inv, xs[:, 1:] - xs[:, par])  # (T, K-1, 3) offset in the parent's frame
     rest = np.stack([_rest_vector(src, s[p], s[c]) for c, p in enumerate(parents) if c])
     offsets = np.concatenate([src.offsets[s[0]][None] if s[0] == 0 else np.zeros((1, 3)),
-                              v.mean(0).numpy() if len(motion) else rest])
+                              _fixed_offsets(v.numpy(), rest)])
     leaves = [c for c in range(len(names)) if c not in parents]
     skeleton = Skeleton(tuple(names), tuple(parents), offsets,
                         _end_sites(src, names, s, leaves, end_site_sources or {}))
