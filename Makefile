@@ -36,7 +36,9 @@ setup: $(STAMP)
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet -e ".[dev]"
+	@echo "setup: pip install -e \".[dev]\" into $(VENV) (a few minutes the first time)"
+	@# this machine's pip config names local index folders that may be absent: drop those warnings
+	$(PY) -m pip install --quiet -e ".[dev]" 2>&1 | { grep -v "is neither a file nor a directory" || true; }
 	@touch $@
 	@echo "setup: $(VENV) ready ($$($(PY) --version))"
 
