@@ -240,6 +240,10 @@ def test_base_and_edge_files_read(tmp_path):
                                    19: "1 2 3 10 20 30 40 1 2 3 50 60", 20: "4 5 6 -10 -20 -30 -40 1 2 3 -50 -60"}))
     np.testing.assert_allclose(const.skeleton.offsets[1], [1.0, 12.0, 3.0])  # OFFSET + constant translation
     np.testing.assert_allclose(const.rotations, m.rotations, atol=1e-12)
+    fixed_root = parse_bvh(_edit(BASE, {4: "OFFSET 1 2 3", 5: "CHANNELS 3 Zrotation Xrotation Yrotation",
+                                        19: "10 20 30 40 50 60", 20: "-10 -20 -30 -40 -50 -60"}))
+    np.testing.assert_allclose(fixed_root.root_positions, [[1, 2, 3], [1, 2, 3]])
+    np.testing.assert_allclose(fixed_root.rotations, m.rotations, atol=1e-12)
     empty = parse_bvh(_edit(BASE, {17: "Frames: 0", 19: "", 20: ""}))
     assert len(empty) == 0
     (tmp_path / "bad.bvh").write_bytes(BASE.encode().replace(b"-60", b"-6\xff"))
@@ -286,6 +290,19 @@ def test_written_file_is_standard_bvh(tmp_path):
     leafy = Skeleton(("a", "b"), (-1, 0), np.array([[0.0, 0, 0], [0, 2, 0]]))
     mo = Motion(np.tile([1.0, 0, 0, 0], (1, 2, 1)), np.zeros((1, 3)), leafy, 30.0)
     assert read_bvh(write_bvh(mo, tmp_path / "leaf.bvh")).skeleton.end_sites[1].tolist() == [0.0, 0.5, 0.0]
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_round_trip_each_order_on_canonical_skeleton(order, tmp_path):
+    rng = np.random.default_rng(7)
+    q = rng.normal(size=(5, 21, 4))
+    m = Motion(q / np.linalg.norm(q, axis=-1, keepdims=True), rng.normal(size=(5, 3)), Skeleton.canonical(), 30.0)
+    again = read_bvh(write_bvh(m, tmp_path / "c.bvh", order=order))
+    assert again.skeleton.names == m.skeleton.names and again.meta["channel_orders"] == (order,) * 21
+    assert np.abs(again.positions() - m.positions()).max() < 1e-7
+    # rotations equal up to sign; End Sites kept
+    assert np.abs(np.abs((again.rotations * m.rotations).sum(-1)) - 1).max() < 1e-9
+    assert all(np.allclose(again.skeleton.end_sites[j], v) for j, v in m.skeleton.end_sites.items())
 
 
 @st.composite
