@@ -239,7 +239,7 @@ class _Scene:
     """A reusable off-screen Plotter holding characters, floor, trajectories and contact discs."""
 
     def __init__(self, tracks: list[_Track], frames, size, view, *, trajectory, contacts, floor,
-                 bone_radius, joint_radius, margin=1.08):
+                 bone_radius, joint_radius, follow=False, margin=1.08):
         import pyvista as pv
 
         self.tracks, self.size = tracks, tuple(size)
@@ -259,6 +259,12 @@ class _Scene:
         lo, hi = pts.min(0) - joint_radius, pts.max(0) + joint_radius
         if floor:
             self.p.add_mesh(_floor(pv, lo, hi), scalars="rgb", rgb=True, lighting=False)
+        self.follow, self.frame0 = follow, frames[0]
+        if follow:  # frame the poses as seen relative to the moving centre, placed at the first frame
+            rel = np.concatenate([t.positions[frames] - self._centre(frames)[:, None] for t in tracks])
+            pts = rel.reshape(-1, 3) + self._centre([frames[0]])
+            pts = np.concatenate([pts, pts * [1, 0, 1]])
+            lo, hi = pts.min(0) - joint_radius, pts.max(0) + joint_radius
         if trajectory:
             for t in tracks:
                 root = t.positions[:, 0] * [1, 0, 1] + [0, 0.004, 0]
@@ -269,7 +275,12 @@ class _Scene:
         anchors = self._labels(pts, frames[0])
         pos, focal = _camera(np.concatenate([[lo, hi], anchors]), c, (H, W), margin)
         self.p.camera.position, self.p.camera.focal_point, self.p.camera.up = pos, focal, (0.0, 1.0, 0.0)
+        self.cam0 = (pos, focal)
         self.p.reset_camera_clipping_range()
+
+    def _centre(self, frames) -> np.ndarray:
+        """(F, 3) mean floor position (x, 0, z) of the tracks' roots on the given frames."""
+        return np.mean([t.positions[frames, 0] for t in self.tracks], 0) * [1, 0, 1]
 
     def _add_discs(self, pv) -> list:
         """Per track and foot, (actor, track, foot index 0/1): discs shown under feet in contact."""
@@ -287,6 +298,13 @@ class _Scene:
         """Text above each labelled track (at its root on `frame`) -> (n, 3) anchor points for framing."""
         top = pts[:, 1].max() + 0.2
         anchors = []
+        if self.follow:  # screen-space text, spread like the tracks (which are spread left to right)
+            n = len(self.tracks)
+            for k, t in enumerate(self.tracks):
+                if t.label:
+                    self.p.add_text(t.label, position=((k + 0.5) / n - 0.04 * len(t.label) / n, 0.92),
+                                    viewport=True, font_size=max(7, self.size[0] // 30), color=tuple(t.color))
+            return np.zeros((0, 3))
         for t in self.tracks:
             if t.label:
                 x = t.positions[frame, 0] * [1, 0, 1] + [0, top, 0]
@@ -304,6 +322,10 @@ class _Scene:
             foot, toe = t.clip.feet[2 * side], t.clip.feet[2 * side + 1]
             actor.position = (t.positions[frame, foot] + t.positions[frame, toe]) / 2 * [1, 0, 1] + [0, 0.008, 0]
             actor.visibility = bool(t.clip.contacts[frame, side])
+        if self.follow:
+            shift = self._centre([frame])[0] - self._centre([self.frame0])[0]
+            self.p.camera.position, self.p.camera.focal_point = self.cam0[0] + shift, self.cam0[1] + shift
+            self.p.reset_camera_clipping_range()
         self.p.render()
         return np.asarray(self.p.screenshot(return_img=True))[..., :3].copy()
 
@@ -398,15 +420,16 @@ def render_side_by_side(items, labels=None, colors=None, parents=None, frame: in
 
 def render_gif(x, path=None, fps: float | None = None, stride: int = 1, parents=None, *, size=(240, 320),
                view="three_quarter", labels=None, colors=None, trajectory: bool = True, gap: float = 0.4,
-               progress: bool = False, **style) -> bytes:
+               follow: bool = False, progress: bool = False, **style) -> bytes:
     """An animation of a Motion / positions (T, J, 3), or of a list of them side by side -> GIF bytes.
 
     One Plotter is reused; each frame only rewrites the meshes' points.  Frames
     0, stride, 2*stride, ... are drawn; fps defaults to the clip's fps / stride
-    (30 for raw positions).  The camera is fixed and frames the whole clip.
+    (30 for raw positions).  The camera is fixed and frames the whole clip, or, with
+    `follow=True`, moves with the root(s) and frames the poses (closer for long clips).
     Writes the GIF to `path` too when given.
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     items = list(x) if isinstance(x, (list, tuple)) else [x]
     tracks = _tracks(items, parents, colors, labels, 0, gap, view)
@@ -415,7 +438,7 @@ def render_gif(x, path=None, fps: float | None = None, stride: int = 1, parents=
     T = min(len(t.positions) for t in tracks)
     frames = list(range(0, T, stride))
     fps = fps or (tracks[0].clip.fps / stride if tracks[0].clip.fps else 30.0)
-    scene = _Scene(tracks, frames, size, view, **{**_STYLE, "trajectory": trajectory, **style})
+    scene = _Scene(tracks, frames, size, view, **{**_STYLE, "trajectory": trajectory, **style}, follow=follow)
     try:
         images = [scene.draw(f) for f in tqdm(frames, desc="render_gif", disable=not progress)]
     finally:
