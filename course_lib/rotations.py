@@ -147,7 +147,7 @@ def quat_to_expmap(q: torch.Tensor) -> torch.Tensor:
     w, u = q[..., 0], q[..., 1:]
     n, small = _safe_norm(u)
     # angle = 2 atan2(|u|, w);  expmap = u * angle / |u|;  |u| -> 0: factor -> 2/w (1 - |u|^2 / 3w^2)
-    w_safe = torch.where(small, w.clamp_min(0.5), w)
+    w_safe = torch.where(small, w.clamp_min(0.5), torch.ones_like(w))  # unused branch stays finite at w = 0
     factor = torch.where(small, 2.0 / w_safe * (1 - (u * u).sum(-1) / (3 * w_safe**2)),
                          2.0 * torch.atan2(n, w) / n)
     return u * factor[..., None]
