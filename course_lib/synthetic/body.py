@@ -72,8 +72,11 @@ class BodyTargets:
 
 
 def reach_drop(skel: Skeleton, pelvis_pos: np.ndarray, pelvis_rot: np.ndarray, ankles: dict,
-               fps: float) -> np.ndarray:
-    """How far to lower the pelvis so both ankles are within MAX_REACH: -> (T,) metres >= the exact need.
+               fps: float, planted: dict | None = None) -> np.ndarray:
+    """How far to lower the pelvis so the ankles are within MAX_REACH: -> (T,) metres >= the exact need.
+
+    ankles: side -> (T, 3); planted: side -> (T,) bool, the frames where a foot must be reached
+    (default all; swing feet are better lifted by `lift_into_reach`).
 
     Solves (dy - delta)^2 + h^2 = (MAX_REACH L)^2 per leg, then a running max and a Gaussian
     keep the drop smooth (no vertical pops) while never below what is needed.
@@ -86,10 +89,29 @@ def reach_drop(skel: Skeleton, pelvis_pos: np.ndarray, pelvis_rot: np.ndarray, a
         h2 = d[:, 0] ** 2 + d[:, 2] ** 2
         L = MAX_REACH * (g.l1 + g.l2) - 1e-3
         delta = d[:, 1] - np.sqrt(np.maximum(L ** 2 - h2, 0.0))
+        if planted is not None:
+            delta = np.where(planted[side], delta, 0.0)
         need = np.maximum(need, delta)
     w = max(int(0.12 * fps), 1)
     sm = gaussian_filter1d(maximum_filter1d(need, 2 * w + 1), w / 2.0)
     return np.maximum(sm, need)
+
+
+def lift_into_reach(skel: Skeleton, side: str, pelvis_pos: np.ndarray, pelvis_rot: np.ndarray,
+                    ankle: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """ankle (T, 3) -> ankle raised (and if need be pulled in) to within MAX_REACH of the hip on frames
+    where free (T,) is True: a swinging foot trailing behind flexes the knee, like a heel kick."""
+    g = leg_geometry(skel, side)
+    hip = pelvis_pos + pelvis_rot @ g.hip
+    d = ankle - hip
+    L = MAX_REACH * (g.l1 + g.l2) - 2e-3
+    h = np.linalg.norm(d[:, [0, 2]], axis=-1)
+    hmax = np.minimum(h, 0.98 * L)
+    y_low = -np.sqrt(L ** 2 - hmax ** 2)  # lowest reachable ankle height relative to the hip
+    out = d.copy()
+    out[:, [0, 2]] *= (hmax / np.maximum(h, 1e-9))[:, None]
+    out[:, 1] = np.maximum(d[:, 1], y_low)
+    return np.where(free[:, None], hip + out, ankle)
 
 
 def pose_body(skel: Skeleton, tg: BodyTargets) -> np.ndarray:

@@ -32,7 +32,15 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from course_lib.motion import Motion
-from course_lib.synthetic.body import BodyTargets, LegGeometry, arm_swing_local, leg_geometry, pose_body, reach_drop
+from course_lib.synthetic.body import (
+    BodyTargets,
+    LegGeometry,
+    arm_swing_local,
+    leg_geometry,
+    lift_into_reach,
+    pose_body,
+    reach_drop,
+)
 from course_lib.synthetic.ik import apply, rot
 from course_lib.synthetic.subjects import Subject
 
@@ -41,6 +49,8 @@ PAD = 1.5          # seconds simulated before and after a clip, so it starts and
 G = 9.81           # m/s^2
 GAITS = ("idle", "walk", "jog", "run", "sidestep", "backward", "turn")
 PARK = (0.05, 0.55)  # gait phases where both feet are down (double support): idle parks the phase there
+SWING_DELAY = 0.08  # fraction of swing at each end with vertical motion only (no sliding near the floor)
+SWING_BLEND = 0.2  # fraction of swing over which the foot accelerates to follow the body (and back)
 
 
 @dataclass(frozen=True)
@@ -66,23 +76,29 @@ class GaitParams:
     twist: float                # pelvis yaw amplitude
     roll: float                 # pelvis list amplitude
     sway: float                 # pelvis lateral sway amplitude
+    plant: float                # stance fraction at which the ankle passes under the hip
 
 
 GAIT_PARAMS = {
-    "idle": GaitParams((0.0, 0.0), 0.0, 0.0, 0.0, 0.75, 0, 0, 1.0, 0.05, 1.1, 0.0, 0.0, 0.005, 0, 0, 10, 0, 0, 0),
-    "walk": GaitParams((0.8, 1.8), 1.8, 0.35, 1.3, 0.62, 17, 30, 0.55, 0.07, 0.65, 0.018, 0.06, 0.015, 3, 18,
-                       18, 5, 4, 0.022),
-    "jog": GaitParams((2.0, 3.2), 2.5, 0.2, 2.5, 0.45, 8, 35, 0.4, 0.11, 0.5, 0.03, 0.225, 0.05, 7, 30, 80, 7, 3,
-                      0.012),
-    "run": GaitParams((3.2, 5.0), 2.8, 0.12, 4.0, 0.33, 4, 40, 0.3, 0.16, 0.4, 0.04, 0.165, 0.07, 11, 40, 90, 9, 3,
-                      0.008),
-    "sidestep": GaitParams((0.3, 0.8), 1.5, 0.3, 0.5, 0.66, 0, 8, 0.6, 0.06, 1.2, 0.01, 0.08, 0.03, 1, 3, 15, 0, 2,
-                           0.0),
-    "backward": GaitParams((0.4, 1.1), 1.6, 0.4, 0.8, 0.64, 0, 12, 0.7, 0.06, 0.7, 0.012, 0.07, 0.025, -2, 10, 15,
-                           3, 3, 0.015),
-    "turn": GaitParams((0.0, 0.0), 1.7, 0.0, 0.0, 0.66, 3, 8, 0.6, 0.06, 1.1, 0.008, 0.08, 0.02, 0, 4, 12, 0, 2,
-                       0.01),
+    # speed, cadence, slope, v0, duty, heel strike, toe off, heel off, clearance, width, bob, bob_low, crouch,
+    # lean, arm, elbow, twist, roll, sway, plant  (see GaitParams)
+    "idle": GaitParams((0.0, 0.0), 0.0, 0.0, 0.0, 0.75, 0, 0, 1.0, 0.05, 1.1, 0.0, 0.0, 0.005, 0, 0, 10, 0, 0, 0, 0.5),
+    "walk": GaitParams((0.8, 1.8), 1.9, 0.4, 1.3, 0.6, 15, 55, 0.45, 0.08, 0.65, 0.01, 0.06, 0.005, 3, 18, 18, 6, 4,
+                       0.022, 0.43),
+    "jog": GaitParams((2.0, 3.2), 2.6, 0.2, 2.5, 0.44, 8, 60, 0.35, 0.17, 0.5, 0.02, 0.22, 0.03, 7, 30, 80, 7, 3,
+                      0.012, 0.45),
+    "run": GaitParams((3.2, 5.0), 2.85, 0.15, 4.0, 0.3, 4, 65, 0.3, 0.28, 0.4, 0.025, 0.155, 0.04, 11, 40, 90, 9, 3,
+                      0.008, 0.45),
+    "sidestep": GaitParams((0.3, 0.8), 1.6, 0.3, 0.5, 0.66, 0, 10, 0.6, 0.06, 1.2, 0.01, 0.08, 0.02, 1, 3, 15, 0, 2,
+                           0.0, 0.5),
+    "backward": GaitParams((0.4, 1.1), 1.7, 0.4, 0.8, 0.64, 0, 15, 0.7, 0.06, 0.7, 0.01, 0.07, 0.02, -2, 10, 15, 3,
+                           3, 0.015, 0.6),
+    "turn": GaitParams((0.0, 0.0), 1.7, 0.0, 0.0, 0.66, 3, 10, 0.6, 0.06, 1.1, 0.008, 0.08, 0.015, 0, 4, 12, 0, 2,
+                       0.01, 0.5),
 }
+# steps/s bounds per gait after the subject's cadence factor (walk: 96-125 steps/min, as in human data)
+CADENCE_BOUNDS = {"idle": (0.0, 0.0), "walk": (1.6, 2.08), "jog": (2.35, 2.85), "run": (2.6, 3.2),
+                  "sidestep": (1.4, 2.0), "backward": (1.5, 2.1), "turn": (1.5, 2.0)}
 _NAMES = [f.name for f in fields(GaitParams)][1:]  # numeric fields, blended by gait weights
 _TABLE = np.array([[getattr(GAIT_PARAMS[g], n) for n in _NAMES] for g in GAITS])  # (G, P)
 DIRECTIONS = {"walk": 0.0, "jog": 0.0, "run": 0.0, "backward": np.pi, "idle": 0.0, "turn": 0.0}
@@ -255,8 +271,8 @@ def _stance_index(td, lo, t):
     return k, t < lo[k]
 
 
-def foot_track(t, td, lo, plant, yaw, prm, geo: LegGeometry) -> dict:
-    """Toe joint, foot pitch/yaw and toe flexion of one foot on frames t (T,).
+def foot_track(t, td, lo, plant, yaw, prm, geo: LegGeometry, root_xz: np.ndarray) -> dict:
+    """Toe joint, foot pitch/yaw and toe flexion of one foot on frames t (T,), root path root_xz (T, 2).
 
     td, lo (K,) stance times; plant (K, 3) toe joint position when flat; yaw (K,) foot yaw;
     prm: dict of (K,) arrays heel_strike, toe_off (rad), heel_off, clearance -> dict of
@@ -279,9 +295,19 @@ def foot_track(t, td, lo, plant, yaw, prm, geo: LegGeometry) -> dict:
     land = heel[k1] + apply(rot("y", yaw[k1]) @ rot("x", -prm["heel_strike"][k1]), heel_to_toe)
     with np.errstate(invalid="ignore"):
         s = np.clip((t - lo[k]) / (td[k1] - lo[k]), 0.0, 1.0)
+    # lift first, then move; s^0.75 front-loads the progress (the foot keeps up with the body after toe-off)
+    # horizontal: blend of the lift-off point (world), a path relative to the moving root, and the landing
+    # point (world): the foot leaves and lands with zero velocity and follows the body in between
     e = _min_jerk(s)[:, None]
-    toe_sw = plant[k] + (land - plant[k]) * e
-    toe_sw[:, 1] += prm["clearance"][k] * np.sin(np.pi * s) ** 0.8
+    at = lambda times: np.stack([np.interp(times, t, root_xz[:, 0]), 0 * times,  # noqa: E731
+                                 np.interp(times, t, root_xz[:, 1])], -1)
+    root_now = np.stack([root_xz[:, 0], 0 * t, root_xz[:, 1]], -1)
+    r0, r1 = plant[k] - at(lo[k]), land - at(td[k1])
+    w0 = 1 - _smooth((s - SWING_DELAY) / SWING_BLEND)[:, None]
+    w2 = 1 - _smooth((1 - s - SWING_DELAY / 2) / (SWING_BLEND / 2))[:, None]  # brake late: little retraction
+    toe_sw = w0 * plant[k] + w2 * land + (1 - w0 - w2) * (root_now + r0 + (r1 - r0) * e)
+    toe_sw[:, 1] = plant[k][:, 1] + (land[:, 1] - plant[k][:, 1]) * e[:, 0]
+    toe_sw[:, 1] += prm["clearance"][k] * 6.75 * s * (1 - s) ** 2  # peaks at s = 1/3: knee flexion after toe-off
     p_sw = -prm["toe_off"][k] + (prm["toe_off"][k] + prm["heel_strike"][k1]) * _smooth(s)
     yaw_sw = yaw[k] + (yaw[k1] - yaw[k]) * e[:, 0]
     flex_sw = prm["toe_off"][k] * (1 - _smooth(s / 0.4))
@@ -296,13 +322,13 @@ def _blend(weights: np.ndarray) -> dict:
     return {n: P[:, i] for i, n in enumerate(_NAMES)}
 
 
-def _cadence(speed: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Steps per second (T,): sum_g w_g (f_g + slope_g (v - v0_g)), v clipped near the gait's range."""
+def _cadence(speed: np.ndarray, weights: np.ndarray, factor: float) -> np.ndarray:
+    """Steps per second (T,): sum_g w_g clip(factor (f_g + slope_g (v - v0_g)), CADENCE_BOUNDS[g])."""
     f = np.zeros(len(speed))
     for i, g in enumerate(GAITS):
         p = GAIT_PARAMS[g]
         v = np.clip(speed, 0.7 * p.speed[0], 1.2 * p.speed[1])
-        f += weights[:, i] * (p.cadence + p.cadence_slope * (v - p.v0))
+        f += weights[:, i] * np.clip(factor * (p.cadence + p.cadence_slope * (v - p.v0)), *CADENCE_BOUNDS[g])
     return f / np.maximum(weights.sum(-1), 1e-9)
 
 
@@ -314,19 +340,19 @@ def plan_feet(ctl: dict, path: np.ndarray, phi: np.ndarray, prm: dict, subject_g
         geo = subject_geo[side]
         td, lo = stance_intervals(phi + offset, t, prm["duty"])
         with np.errstate(invalid="ignore"):
-            half = np.minimum(0.5 * (lo - td), 0.3)
-            tm = np.where(np.isfinite(td), td + half, np.where(np.isfinite(lo), lo - 0.3, t[0]))
+            fr0 = np.clip(np.round((np.clip(td, t[0], t[-1]) - t[0]) * FPS).astype(int), 0, len(t) - 1)
+            before = np.minimum(prm["plant"][fr0] * (lo - td), 0.3)
+            tm = np.where(np.isfinite(td), td + before, np.where(np.isfinite(lo), lo - 0.3, t[0]))
         tm = np.clip(tm, t[0], t[-1])
-        fr = np.clip(np.round((np.clip(td, t[0], t[-1]) - t[0]) * FPS).astype(int), 0, len(t) - 1)
         x, z, yaw = (np.interp(tm, t, path[:, i]) for i in range(3))
         width = np.interp(tm, t, prm["width"]) * abs(geo.hip[0])
         # toe joint at mid-stance: lateral offset, ankle under the hip (toe ahead by the foot's length)
         local = np.stack([sign * width, np.full_like(width, geo.toe_height), np.full_like(width, geo.toe[2])], -1)
         plant = np.stack([x, np.zeros_like(x), z], -1) + apply(rot("y", yaw), local)
         foot_yaw = yaw + sign * np.radians(6.0)  # toe-out
-        fp = {n: prm[n][fr] for n in ("heel_off", "clearance")}
-        fp.update({n: np.radians(prm[n][fr]) for n in ("heel_strike", "toe_off")})
-        out[side] = foot_track(t, td, lo, plant, foot_yaw, fp, geo)
+        fp = {n: prm[n][fr0] for n in ("heel_off", "clearance")}
+        fp.update({n: np.radians(prm[n][fr0]) for n in ("heel_strike", "toe_off")})
+        out[side] = foot_track(t, td, lo, plant, foot_yaw, fp, geo, path[:, :2])
     return out
 
 
@@ -373,7 +399,11 @@ def body_targets(subject: Subject, ctl: dict, path: np.ndarray, phi: np.ndarray,
         tg.ankle[side] = f["toe"] - apply(tg.foot_rot[side], geo[side].toe)
         tg.knee_pole[side] = apply(rot("y", f["yaw"]), np.array([0.0, 0.0, 1.0])) + \
             apply(rot("y", yaw), np.array([0.0, 0.0, 1.0]))
-    tg.pelvis_pos[:, 1] -= reach_drop(subject.skeleton(), tg.pelvis_pos, tg.pelvis_rot, tg.ankle, FPS)
+    skel = subject.skeleton()
+    stance = {side: feet[side]["stance"] for side in feet}
+    tg.pelvis_pos[:, 1] -= reach_drop(skel, tg.pelvis_pos, tg.pelvis_rot, tg.ankle, FPS, stance)
+    for side in feet:  # a swing foot out of reach is lifted (knee flexion) rather than the body lowered
+        tg.ankle[side] = lift_into_reach(skel, side, tg.pelvis_pos, tg.pelvis_rot, tg.ankle[side], ~stance[side])
     return tg
 
 
@@ -416,7 +446,7 @@ def generate_locomotion(subject: Subject, program: ControlProgram | None = None,
     path = integrate_root(ctl["velocity"], ctl["heading_rate"], FPS, origin=i0)
     prm = _blend(ctl["weights"])
     speed = np.linalg.norm(ctl["velocity"], axis=-1)
-    cadence = _cadence(speed, ctl["weights"]) * subject.cadence / subject.step_length  # steps/s
+    cadence = _cadence(speed, ctl["weights"], subject.cadence / subject.step_length)  # steps/s
     phi = gait_phase(cadence / 2, ctl["weights"][:, GAITS.index("idle")], FPS, float(rng.uniform()))
     skel = subject.skeleton()
     geo = {s: leg_geometry(skel, s) for s in ("Left", "Right")}
