@@ -34,7 +34,7 @@ from torch.utils.data import Dataset
 from tqdm.auto import tqdm
 
 from course_lib.modes import course_mode
-from course_lib.motion import Motion
+from course_lib.motion import Motion, foot_contacts
 from course_lib.representations import REPRESENTATIONS, encode, feature_names, root_yaw_pitch_roll
 from course_lib.skeleton import Skeleton
 
@@ -433,9 +433,9 @@ def data_card(motions: list[Motion], *, name: str, seed: int, command: str, desc
         speeds.append(step)
         clip_speed.append(step.mean() if len(step) else 0.0)
         turn.append(np.degrees(np.abs(np.diff(yaw))) * m.fps)
-        pos = m.positions()
+        pos = m.positions()  # (T, J, 3)
         lowest.append(pos[:, list(m.skeleton.feet), 1].min())
-        contact.append(m.contacts().any(-1).mean())
+        contact.append(foot_contacts(pos, m.skeleton, m.fps).any(-1).mean())
     cat = lambda xs: np.concatenate(xs) if xs else np.zeros(0)  # noqa: E731
     return {
         "name": name, "schema_version": SCHEMA_VERSION, "description": description, "seed": int(seed),
@@ -485,8 +485,9 @@ def write_data_card(card: dict, data_path) -> tuple[Path, Path]:
 
 def write_dataset(motions: list[Motion], path, *, card: dict, meta: dict | None = None,
                   overwrite: bool = False) -> Path:
-    """save_motions + the data card beside; the card also goes into the file's meta."""
-    path = save_motions(motions, path, meta=dict(meta or {}, card=card), overwrite=overwrite)
+    """save_motions + the data card beside (the card's command line is not stored in the .npz, so the
+    same data written to another path has the same bytes)."""
+    path = save_motions(motions, path, meta=meta, overwrite=overwrite)
     write_data_card(card, path)
     return path
 
