@@ -162,3 +162,28 @@ def test_clear_errors():
         R.decode_quaternion_root(np.zeros((10, 90)), sk, 30.0)
     with pytest.raises(ValueError, match="3J"):
         R.decode_positions(np.zeros((10, 65)), 30.0)
+
+
+@pytest.mark.parametrize("name", R.REPRESENTATIONS)
+def test_round_trip_generated_and_real_motion(name, cmu_bvh_path):
+    from course_lib.bvh import map_to_canonical, read_bvh
+    from course_lib.synthetic import generate_locomotion, make_subject
+
+    clips = [generate_locomotion(make_subject(i, seed=1), None, duration=4.0, fps=60, seed=i) for i in range(2)]
+    clips.append(map_to_canonical(read_bvh(cmu_bvh_path))[:240])
+    for m in clips:
+        f = R.encode(m, name)
+        p = R.decode_to_positions(f.astype(np.float32), name, m.skeleton, m.fps, R.root_start(m))
+        assert np.abs(p - m.positions()).max() < 1e-4
+
+
+def test_control_matches_the_generators_commands():
+    """The control decoded from the body agrees, on average over a clip, with the velocity and heading
+    rate the generator was driven by (they differ per frame by the pelvis' sway and twist)."""
+    from course_lib.synthetic import generate_locomotion, make_subject
+
+    for i in range(3):
+        m = generate_locomotion(make_subject(i, seed=1), None, duration=4.0, fps=60, seed=i)
+        c = R.encode_positions_control(m)[:, -3:].mean(0)  # (forward, sideways, yaw rate)
+        v, w = m.meta["velocity"].mean(0), m.meta["heading_rate"].mean()  # v: (x left, z forward)
+        np.testing.assert_allclose(c, [v[1], v[0], w], atol=0.1)
