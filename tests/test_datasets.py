@@ -176,3 +176,15 @@ def test_load_dataset_prefers_the_file(tmp_path):
     assert [len(m) for m in back] == [len(m) for m in ms]
     with pytest.raises(ValueError, match="unknown dataset"):
         D.load_dataset("mocap", data_dir=tmp_path)
+
+
+def test_load_dataset_generates_a_small_seeded_set(tmp_path):
+    ms = D.load_dataset("locomotion", mode="ci", data_dir=tmp_path)  # no file there: generated in memory
+    assert len(ms) == D.GENERATED_SIZES["locomotion"]["ci"] == 24
+    assert len({m.subject for m in ms}) == 8 and all(m.fps == 60 and len(m) == 241 for m in ms)
+    again = D.generate_locomotion_set(2, seed=0, n_subjects=8)
+    np.testing.assert_array_equal(again[1].rotations, ms[1].rotations)  # seeded per clip
+    back = D.load_motions(D.save_motions(ms[:3], tmp_path / "x.npz"))  # per-frame meta arrays survive
+    np.testing.assert_array_equal(back[2].meta["contacts"], ms[2].meta["contacts"])
+    assert back[2].meta["speed"].dtype == np.float64 and back[2].meta["speed"].shape == (241,)
+    assert back[2].meta["program"]["gaits"] == list(ms[2].meta["program"].gaits)
