@@ -4,6 +4,7 @@ Public API: make_subject, make_subjects, random_control_program, ControlProgram,
 generate_locomotion (see locomotion.py).
 """
 
+from course_lib.synthetic.actions import ACTIONS, generate_action
 from course_lib.synthetic.locomotion import (
                                              GAITS,
                                              ControlProgram,
@@ -13,5 +14,5 @@ from course_lib.synthetic.locomotion import (
 )
 from course_lib.synthetic.subjects import Subject, make_subject, make_subjects
 
-__all__ = ["GAITS", "ControlProgram", "Subject", "generate_locomotion", "integrate_root", "make_subject",
-           "make_subjects", "random_control_program"]
+__all__ = ["ACTIONS", "GAITS", "ControlProgram", "Subject", "generate_action", "generate_locomotion",
+           "integrate_root", "make_subject", "make_subjects", "random_control_program"]

@@ -427,18 +427,11 @@ def resample_motion(motion: Motion, fps: float) -> Motion:
     return out
 
 
-def generate_locomotion(subject: Subject, program: ControlProgram | None = None, duration: float = 4.0,
-                        fps: float = FPS, seed: int = 0) -> Motion:
-    """A locomotion clip of `duration` s following `program` (random from `seed` when None).
-
-    -> Motion on subject.skeleton() at `fps` (generated at 120 and resampled), action = dominant gait;
-    meta: seed, program, speed (T,) m/s, velocity (T, 2) body frame, heading_rate (T,) rad/s,
-    gait (T,) index into GAITS, gait_names, contacts (T, 2) bool ground truth (stance), root_path (T, 3)
-    (x, z, yaw) integrated from the controls, phase (T,) gait cycles.
-    """
+def locomotion_targets(subject: Subject, program: ControlProgram | None, duration: float,
+                       rng: np.random.Generator) -> tuple[BodyTargets, dict]:
+    """Body targets of a locomotion clip (cropped to the clip's frames at FPS) and its per-frame meta."""
     if not duration > 0:
         raise ValueError(f"generate_locomotion: duration must be positive, got {duration}")
-    rng = np.random.default_rng(seed)
     if program is None:
         program = random_control_program(duration, rng=rng)
     ctl = program.sample(FPS, -PAD, duration + PAD)
@@ -453,13 +446,25 @@ def generate_locomotion(subject: Subject, program: ControlProgram | None = None,
     feet = plan_feet(ctl, path, phi, prm, geo)
     tg = body_targets(subject, ctl, path, phi, prm, feet, geo, float(rng.uniform(0, 2 * np.pi)))
     sl = slice(i0, i0 + n)
-    rotations = pose_body(skel, crop_targets(tg, sl))
-    gait = ctl["gait"][sl]
-    meta = dict(seed=seed, program=program, speed=speed[sl], velocity=ctl["velocity"][sl],
-                heading_rate=ctl["heading_rate"][sl], gait=gait, gait_names=GAITS,
+    meta = dict(program=program, speed=speed[sl], velocity=ctl["velocity"][sl],
+                heading_rate=ctl["heading_rate"][sl], gait=ctl["gait"][sl], gait_names=GAITS,
                 contacts=np.stack([feet["Left"]["stance"][sl], feet["Right"]["stance"][sl]], -1),
-                root_path=path[sl], phase=phi[sl], cadence=cadence[sl])
-    action = GAITS[int(np.bincount(gait, minlength=len(GAITS)).argmax())]
-    motion = Motion(rotations, tg.pelvis_pos[sl], skel, FPS, action=action, style=subject.style,
-                    subject=subject.name, meta=meta)
+                root_path=path[sl], phase=phi[sl], cadence=cadence[sl], idle_weight=ctl["weights"][sl, 0])
+    return crop_targets(tg, sl), meta
+
+
+def generate_locomotion(subject: Subject, program: ControlProgram | None = None, duration: float = 4.0,
+                        fps: float = FPS, seed: int = 0) -> Motion:
+    """A locomotion clip of `duration` s following `program` (random from `seed` when None).
+
+    -> Motion on subject.skeleton() at `fps` (generated at 120 and resampled), action = dominant gait;
+    meta: seed, program, speed (T,) m/s, velocity (T, 2) body frame, heading_rate (T,) rad/s,
+    gait (T,) index into GAITS, gait_names, contacts (T, 2) bool ground truth (stance), root_path (T, 3)
+    (x, z, yaw) integrated from the controls, phase (T,) gait cycles, cadence (T,) steps/s.
+    """
+    tg, meta = locomotion_targets(subject, program, duration, np.random.default_rng(seed))
+    skel = subject.skeleton()
+    action = GAITS[int(np.bincount(meta["gait"], minlength=len(GAITS)).argmax())]
+    motion = Motion(pose_body(skel, tg), tg.pelvis_pos, skel, FPS, action=action, style=subject.style,
+                    subject=subject.name, meta=dict(meta, seed=seed))
     return resample_motion(motion, fps)
