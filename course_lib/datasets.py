@@ -344,7 +344,7 @@ def resample_clips(motions: list[Motion], fps: float | None) -> list[Motion]:
 
 def _map(fn, jobs: list, workers: int, desc: str, progress: bool) -> list:
     """[fn(job) for job in jobs] in order, in `workers` processes (spawned: safe after torch was used)."""
-    bar = dict(total=len(jobs), desc=desc, disable=not progress)
+    bar = dict(total=len(jobs), desc=desc) if progress else dict(disable=True)  # TQDM_DISABLE=1 is honoured
     if workers <= 1 or len(jobs) < 2:
         return [fn(j) for j in tqdm(jobs, **bar)]
     ctx = multiprocessing.get_context("spawn")
@@ -395,7 +395,7 @@ def noisy_copies(motions: list[Motion], seed: int = 0, progress: bool = False) -
     from course_lib.synthetic import add_noise
 
     out = []
-    for i, m in enumerate(tqdm(motions, desc="noise", disable=not progress)):
+    for i, m in enumerate(tqdm(motions, desc="noise", **({} if progress else dict(disable=True)))):
         n = add_noise(m, seed=_clip_seed(seed, i))
         n.meta = dict(n.meta, clean_index=i)
         out.append(n)
