@@ -352,18 +352,35 @@ def _map(fn, jobs: list, workers: int, desc: str, progress: bool) -> list:
         return list(tqdm(ex.map(fn, jobs, chunksize=max(1, min(16, len(jobs) // (4 * workers)))), **bar))
 
 
+MAX_ATTEMPTS = 3  # a clip whose generation raises is redrawn with the next seed; the card counts them
+
+
+def _with_retries(make, keys: tuple) -> Motion:
+    """make(seed) with seed _clip_seed(*keys), then _clip_seed(*keys, k) for attempt k = 1, 2 on ValueError;
+    meta["attempt"] = k."""
+    for k in range(MAX_ATTEMPTS):
+        try:
+            m = make(_clip_seed(*keys) if k == 0 else _clip_seed(*keys, k))
+        except ValueError:
+            if k == MAX_ATTEMPTS - 1:
+                raise
+            continue
+        m.meta = dict(m.meta, attempt=k)
+        return m
+
+
 def _locomotion_clip(job) -> Motion:
     from course_lib.synthetic import generate_locomotion
 
-    subject, duration, fps, seed = job
-    return generate_locomotion(subject, None, duration=duration, fps=fps, seed=seed)
+    subject, duration, fps, keys = job
+    return _with_retries(lambda seed: generate_locomotion(subject, None, duration=duration, fps=fps, seed=seed), keys)
 
 
 def _action_clip(job) -> Motion:
     from course_lib.synthetic import generate_action
 
-    subject, action, style, fps, seed = job
-    return generate_action(subject, action, style, fps=fps, seed=seed)
+    subject, action, style, fps, keys = job
+    return _with_retries(lambda seed: generate_action(subject, action, style, fps=fps, seed=seed), keys)
 
 
 def generate_locomotion_set(n_clips: int, seed: int = 0, fps: float = 60.0, duration: float = 4.0,
@@ -375,7 +392,7 @@ def generate_locomotion_set(n_clips: int, seed: int = 0, fps: float = 60.0, dura
 
     n_subjects = n_subjects or max(8, min(60, n_clips // 40))
     subjects = make_subjects(n_subjects, seed)
-    jobs = [(subjects[i % n_subjects], duration, fps, _clip_seed(seed, i)) for i in range(n_clips)]
+    jobs = [(subjects[i % n_subjects], duration, fps, (seed, i)) for i in range(n_clips)]
     return _map(_locomotion_clip, jobs, workers, "locomotion", progress)
 
 
@@ -385,7 +402,7 @@ def generate_actions_set(n_subjects: int, seed: int = 0, fps: float = 60.0, acti
     from course_lib.synthetic import make_subjects
 
     subjects = make_subjects(n_subjects, seed)
-    jobs = [(subjects[s], a, st, fps, _clip_seed(seed, s, i, k)) for s in range(n_subjects)
+    jobs = [(subjects[s], a, st, fps, (seed, s, i, k)) for s in range(n_subjects)
             for i, a in enumerate(actions) for k, st in enumerate(styles)]
     return _map(_action_clip, jobs, workers, "actions", progress)
 
@@ -440,6 +457,7 @@ def data_card(motions: list[Motion], *, name: str, seed: int, command: str, desc
     return {
         "name": name, "schema_version": SCHEMA_VERSION, "description": description, "seed": int(seed),
         "command": command, "clips": len(motions), "frames": int(sum(len(m) for m in motions)),
+        "clips_redrawn_after_a_generator_error": sum(int(m.meta.get("attempt", 0) > 0) for m in motions),
         "fps": sorted({float(m.fps) for m in motions}),
         "counts": {k: dict(sorted(Counter(getattr(m, k) or "(none)" for m in motions).items()))
                    for k in ("action", "style", "subject")},
@@ -458,7 +476,9 @@ def _card_markdown(card: dict) -> str:
     lines = [f"# Data card: {card['name']}", "", card["description"], "",
              f"- schema version {card['schema_version']}, seed {card['seed']}",
              f"- command: `{card['command']}`",
-             f"- {card['clips']} clips, {card['frames']} frames at {', '.join(f'{f:g}' for f in card['fps'])} fps", ""]
+             f"- {card['clips']} clips, {card['frames']} frames at {', '.join(f'{f:g}' for f in card['fps'])} fps",
+             f"- clips redrawn with the next seed after a generator error: "
+             f"{card['clips_redrawn_after_a_generator_error']}", ""]
     for key, counts in card["counts"].items():
         lines.append(f"**{key}** ({len(counts)}): " + ", ".join(f"{k} {v}" for k, v in counts.items()))
         lines.append("")
