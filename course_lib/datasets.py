@@ -408,13 +408,14 @@ def generate_actions_set(n_subjects: int, seed: int = 0, fps: float = 60.0, acti
 
 
 def noisy_copies(motions: list[Motion], seed: int = 0, progress: bool = False) -> list[Motion]:
-    """A noisy copy of each clip (synthetic.add_noise), meta["clean_index"] = its clip's index."""
+    """A noisy copy of each clip (synthetic.add_noise: jitter, spikes, dropped frames; same length),
+    meta["clean_index"] = its clip's index, meta["noise"] = what was corrupted."""
     from course_lib.synthetic import add_noise
 
     out = []
     for i, m in enumerate(tqdm(motions, desc="noise", **({} if progress else dict(disable=True)))):
         n = add_noise(m, seed=_clip_seed(seed, i))
-        n.meta = dict(n.meta, clean_index=i)
+        n.meta = {k: v for k, v in n.meta.items() if k != "clean"} | {"clean_index": i}  # clean: kept beside
         out.append(n)
     return out
 

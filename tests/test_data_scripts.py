@@ -98,7 +98,9 @@ def test_noisy_cli_keeps_clean_beside(tmp_path):
     ref = D.load_motions(clean)
     for n, c, r in zip(noisy, pairs, ref, strict=False):
         np.testing.assert_array_equal(c.rotations, r.rotations)
-        assert n.meta["clean_index"] in (0, 1) and not np.array_equal(n.positions(), c.positions())
+        assert n.meta["clean_index"] in (0, 1) and len(n) == len(c) and "dropped" in n.meta["noise"]
+        err = np.linalg.norm(n.positions() - c.positions(), axis=-1).mean()
+        assert 0.002 < err < 0.2  # jitter and spikes: millimetres to centimetres, not a different motion
     with pytest.raises(SystemExit):
         script("make_noisy").main(["--input", str(clean), "--clips", "2"])
     script("make_noisy").main(["--input", str(clean), "--clips", "2", "--force"])
