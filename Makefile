@@ -22,9 +22,9 @@ COURSE_MODE ?= class
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 
-# Headless rendering (EGL, no X server) and quiet, deterministic plotting; see README "Headless rendering".
-HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true \
-	PYVISTA_JUPYTER_BACKEND=static MPLBACKEND=Agg
+# Headless rendering (EGL, no X server); see README "Headless rendering".  MPLBACKEND=Agg is for
+# the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
+HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
 .PHONY: help setup data course test lint unit nbval reproduce student bench clean distclean
 
@@ -61,7 +61,7 @@ course: setup data
 	@mkdir -p site; failed=""; \
 	for nb in $(NOTEBOOKS); do \
 	  start=$$(date +%s); echo "course: $$nb (COURSE_MODE=$(COURSE_MODE))"; \
-	  if COURSE_MODE=$(COURSE_MODE) $(HEADLESS) $(VENV)/bin/jupyter nbconvert --to html --execute \
+	  if env -u MPLBACKEND COURSE_MODE=$(COURSE_MODE) $(HEADLESS) $(VENV)/bin/jupyter nbconvert --to html --execute \
 	       --ExecutePreprocessor.timeout=1800 --output-dir site "$$nb"; then \
 	    echo "course: $$nb done in $$(( $$(date +%s) - start )) s"; \
 	  else failed="$$failed $$nb"; rm -f "site/$$(basename "$${nb%.ipynb}").html"; fi; \
@@ -78,7 +78,7 @@ lint: setup
 unit: setup
 	@start=$$(date +%s); \
 	echo "COURSE_MODE=ci $(PY) -m pytest -n 2 tests"; \
-	COURSE_MODE=ci OMP_NUM_THREADS=1 $(HEADLESS) $(PY) -m pytest -n 2 tests; \
+	COURSE_MODE=ci OMP_NUM_THREADS=1 MPLBACKEND=Agg $(HEADLESS) $(PY) -m pytest -n 2 tests; \
 	echo "unit: tests took $$(( $$(date +%s) - start )) s"
 
 # nbval re-executes each committed notebook in the venv's kernel and compares the
@@ -86,7 +86,7 @@ unit: setup
 nbval: setup
 	@if [ -z "$(NOTEBOOKS)" ]; then echo "nbval: no notebooks in notebooks/ yet"; else \
 	  start=$$(date +%s); echo "COURSE_MODE=ci $(PY) -m pytest --nbval-lax $(NOTEBOOKS)"; \
-	  COURSE_MODE=ci TQDM_DISABLE=1 OMP_NUM_THREADS=1 $(HEADLESS) $(PY) -m pytest -p no:xdist \
+	  env -u MPLBACKEND COURSE_MODE=ci TQDM_DISABLE=1 OMP_NUM_THREADS=1 $(HEADLESS) $(PY) -m pytest -p no:xdist \
 	    --nbval-lax --nbval-current-env --nbval-cell-timeout=300 $(NOTEBOOKS); \
 	  echo "nbval: notebooks took $$(( $$(date +%s) - start )) s"; fi
 

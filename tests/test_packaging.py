@@ -239,5 +239,7 @@ def test_makefile_targets_run_the_right_commands():
     course = dry("course", "COURSE_MODE=full")
     assert "COURSE_MODE=full" in course and "--ExecutePreprocessor.timeout=1800 --output-dir site" in course
     assert "tools/build_site.py" in course
+    # Agg in a notebook kernel replaces the inline backend: the executed lessons would lose their figures
+    assert "env -u MPLBACKEND" in course and "MPLBACKEND=Agg" not in course
     test = dry("test")
     assert "ruff check ." in test and "pytest -n 2 tests" in test
