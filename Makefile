@@ -29,7 +29,7 @@ HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true
 .PHONY: help setup data course test lint unit nbval reproduce student bench clean distclean
 
 help:
-	@sed -n '3,12p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,12p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)

@@ -243,3 +243,6 @@ def test_makefile_targets_run_the_right_commands():
     assert "env -u MPLBACKEND" in course and "MPLBACKEND=Agg" not in course
     test = dry("test")
     assert "ruff check ." in test and "pytest -n 2 tests" in test
+    for option in ["COURSE_MODE=ci TQDM_DISABLE=1", "VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow",
+                   "PYVISTA_OFF_SCREEN=true", "--nbval-lax --nbval-current-env --nbval-cell-timeout=300"]:
+        assert option in test, option
