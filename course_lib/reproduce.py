@@ -265,7 +265,7 @@ def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool =
     train_ds, test_ds = datasets(spec, load_clips(spec, progress=progress))
     timings = {"data_seconds": round(time.perf_counter() - t0, 1)}
     command = "python -m course_lib.reproduce vae_lstm"
-    for name, (_, config, tspec) in lesson02_models().items():
+    for name, (_, config, _spec) in lesson02_models().items():
         model, hist = train_one(name, train_ds, seed, progress=progress)
         timings[name] = round(hist.seconds, 1)
         metrics = {"train_seconds": round(hist.seconds, 1), "steps": hist.num_steps,
