@@ -104,7 +104,7 @@ def lift_into_reach(skel: Skeleton, side: str, pelvis_pos: np.ndarray, pelvis_ro
     g = leg_geometry(skel, side)
     hip = pelvis_pos + pelvis_rot @ g.hip
     d = ankle - hip
-    L = MAX_REACH * (g.l1 + g.l2) - 2e-3
+    L = MAX_REACH * (g.l1 + g.l2)  # reach_drop aims 1 mm inside this: planted frames are never lifted
     h = np.linalg.norm(d[:, [0, 2]], axis=-1)
     hmax = np.minimum(h, 0.98 * L)
     y_low = -np.sqrt(L ** 2 - hmax ** 2)  # lowest reachable ankle height relative to the hip

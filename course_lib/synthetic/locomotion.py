@@ -50,7 +50,8 @@ G = 9.81           # m/s^2
 GAITS = ("idle", "walk", "jog", "run", "sidestep", "backward", "turn")
 PARK = (0.05, 0.55)  # gait phases where both feet are down (double support): idle parks the phase there
 SWING_DELAY = 0.08  # fraction of swing at each end with vertical motion only (no sliding near the floor)
-SWING_BLEND = 0.2  # fraction of swing over which the foot accelerates to follow the body (and back)
+APPROACH_SLOPE = 2.0  # toe height gain per metre of horizontal travel near lift-off and touch-down
+SWING_RAMP = 0.25  # fraction of the swing path over which the foot accelerates (and brakes)
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ GAIT_PARAMS = {
                       0.012, 0.45),
     "run": GaitParams((3.2, 5.0), 2.85, 0.15, 4.0, 0.3, 4, 65, 0.3, 0.28, 0.4, 0.025, 0.155, 0.04, 11, 40, 90, 9, 3,
                       0.008, 0.45),
-    "sidestep": GaitParams((0.3, 0.8), 1.6, 0.3, 0.5, 0.66, 0, 10, 0.6, 0.06, 1.2, 0.01, 0.08, 0.02, 1, 3, 15, 0, 2,
+    "sidestep": GaitParams((0.3, 0.8), 1.9, 0.5, 0.5, 0.6, 0, 10, 0.6, 0.06, 1.2, 0.01, 0.08, 0.02, 1, 3, 15, 0, 2,
                            0.0, 0.5),
     "backward": GaitParams((0.4, 1.1), 1.7, 0.4, 0.8, 0.64, 0, 15, 0.7, 0.06, 0.7, 0.01, 0.07, 0.02, -2, 10, 15, 3,
                            3, 0.015, 0.6),
@@ -98,7 +99,7 @@ GAIT_PARAMS = {
 }
 # steps/s bounds per gait after the subject's cadence factor (walk: 96-125 steps/min, as in human data)
 CADENCE_BOUNDS = {"idle": (0.0, 0.0), "walk": (1.6, 2.08), "jog": (2.35, 2.85), "run": (2.6, 3.2),
-                  "sidestep": (1.4, 2.0), "backward": (1.5, 2.1), "turn": (1.5, 2.0)}
+                  "sidestep": (1.6, 2.3), "backward": (1.5, 2.1), "turn": (1.5, 2.0)}
 _NAMES = [f.name for f in fields(GaitParams)][1:]  # numeric fields, blended by gait weights
 _TABLE = np.array([[getattr(GAIT_PARAMS[g], n) for n in _NAMES] for g in GAITS])  # (G, P)
 DIRECTIONS = {"walk": 0.0, "jog": 0.0, "run": 0.0, "backward": np.pi, "idle": 0.0, "turn": 0.0}
@@ -214,6 +215,15 @@ def _smooth(x):
     return x * x * (3 - 2 * x)
 
 
+def _ramp_profile(x, r):
+    """Position on [0, 1] of a move whose speed ramps up (smoothstep) over [0, r], stays constant, and ramps
+    down over [1 - r, 1]; zero velocity at both ends.  int_0^u (3t^2 - 2t^3) dt = u^3 - u^4 / 2."""
+    V = 1.0 / (1.0 - r)
+    u, w = np.clip(x / r, 0, 1), np.clip((1 - x) / r, 0, 1)
+    return np.where(x < r, V * r * (u ** 3 - u ** 4 / 2),
+                    np.where(x > 1 - r, 1 - V * r * (w ** 3 - w ** 4 / 2), V * (r / 2 + x - r)))
+
+
 def _min_jerk(x):
     """Minimum-jerk profile 10x^3 - 15x^4 + 6x^5 on [0, 1] (zero velocity and acceleration at both ends)."""
     x = np.clip(x, 0.0, 1.0)
@@ -284,9 +294,9 @@ def foot_track(t, td, lo, plant, yaw, prm, geo: LegGeometry, root_xz: np.ndarray
     k1 = np.minimum(k + 1, len(td) - 1)
     # stance: heel strike rolls the foot flat about the heel, heel-off lifts the heel about the ball
     with np.errstate(invalid="ignore"):
-        dur = lo[k] - td[k]
-        t_hs = np.minimum(0.1, 0.3 * dur)
-        t_ho = np.minimum((1 - prm["heel_off"][k]) * dur, 0.3)
+        dur = np.minimum(lo[k] - td[k], 10.0)  # open-ended stances (idle) count as long ones
+        t_hs = np.maximum(np.minimum(0.1, 0.3 * dur), 1e-6)
+        t_ho = np.maximum(np.minimum((1 - prm["heel_off"][k]) * dur, 0.3), 1e-6)
         p_st = prm["heel_strike"][k] * (1 - _smooth((t - td[k]) / t_hs)) \
             - prm["toe_off"][k] * _smooth((t - (lo[k] - t_ho)) / t_ho)
     pivot = heel[k] + apply(rot("y", yaw[k]) @ rot("x", -np.maximum(p_st, 0.0)), heel_to_toe)
@@ -295,21 +305,19 @@ def foot_track(t, td, lo, plant, yaw, prm, geo: LegGeometry, root_xz: np.ndarray
     land = heel[k1] + apply(rot("y", yaw[k1]) @ rot("x", -prm["heel_strike"][k1]), heel_to_toe)
     with np.errstate(invalid="ignore"):
         s = np.clip((t - lo[k]) / (td[k1] - lo[k]), 0.0, 1.0)
-    # lift first, then move; s^0.75 front-loads the progress (the foot keeps up with the body after toe-off)
-    # horizontal: blend of the lift-off point (world), a path relative to the moving root, and the landing
-    # point (world): the foot leaves and lands with zero velocity and follows the body in between
-    e = _min_jerk(s)[:, None]
-    at = lambda times: np.stack([np.interp(times, t, root_xz[:, 0]), 0 * times,  # noqa: E731
-                                 np.interp(times, t, root_xz[:, 1])], -1)
-    root_now = np.stack([root_xz[:, 0], 0 * t, root_xz[:, 1]], -1)
-    r0, r1 = plant[k] - at(lo[k]), land - at(td[k1])
-    w0 = 1 - _smooth((s - SWING_DELAY) / SWING_BLEND)[:, None]
-    w2 = 1 - _smooth((1 - s - SWING_DELAY / 2) / (SWING_BLEND / 2))[:, None]  # brake late: little retraction
-    toe_sw = w0 * plant[k] + w2 * land + (1 - w0 - w2) * (root_now + r0 + (r1 - r0) * e)
-    toe_sw[:, 1] = plant[k][:, 1] + (land[:, 1] - plant[k][:, 1]) * e[:, 0]
-    toe_sw[:, 1] += prm["clearance"][k] * 6.75 * s * (1 - s) ** 2  # peaks at s = 1/3: knee flexion after toe-off
+    # horizontal: lift first (SWING_DELAY), then a smooth-ramped, nearly constant-velocity path to the landing
+    # point, set down vertically at the end; monotone in the world, zero velocity at lift-off and touch-down
+    x = np.clip((s - SWING_DELAY) / (1 - 1.5 * SWING_DELAY), 0.0, 1.0)
+    e = _ramp_profile(x, SWING_RAMP)[:, None]
+    toe_sw = plant[k] + (land - plant[k]) * e
+    toe_sw[:, 1] = plant[k][:, 1] + (land[:, 1] - plant[k][:, 1]) * _min_jerk(s)
+    arc = prm["clearance"][k] * 6.75 * s * (1 - s) ** 2  # peaks at s = 1/3: knee flexion after toe-off
+    # leave and approach the floor at >= APPROACH_SLOPE: no sliding with the toe just above the floor
+    near = np.minimum(np.linalg.norm((toe_sw - plant[k])[:, [0, 2]], axis=-1),
+                      np.linalg.norm((land - toe_sw)[:, [0, 2]], axis=-1))
+    toe_sw[:, 1] += np.maximum(arc, np.minimum(APPROACH_SLOPE * near, 0.06))
     p_sw = -prm["toe_off"][k] + (prm["toe_off"][k] + prm["heel_strike"][k1]) * _smooth(s)
-    yaw_sw = yaw[k] + (yaw[k1] - yaw[k]) * e[:, 0]
+    yaw_sw = yaw[k] + (yaw[k1] - yaw[k]) * _min_jerk(s)
     flex_sw = prm["toe_off"][k] * (1 - _smooth(s / 0.4))
     return dict(toe=np.where(stance[:, None], toe_st, toe_sw), pitch=np.where(stance, p_st, p_sw),
                 yaw=np.where(stance, yaw[k], yaw_sw), flex=np.where(stance, np.maximum(-p_st, 0.0), flex_sw),

@@ -22,9 +22,9 @@ from course_lib.skeleton import Skeleton
 # random personal variation.  Magnitudes are modest, as between real walkers.
 STYLE_PRESETS = {
     "A": dict(hip_sway=0.8, arm_swing=1.15, cadence=0.98, step_length=1.03, torso_lean=1.5,
-              shoulder_width=1.04, hip_width=0.97),
+              shoulder_width=1.03, hip_width=0.97),
     "B": dict(hip_sway=1.6, arm_swing=0.75, cadence=1.05, step_length=0.96, torso_lean=-1.0,
-              shoulder_width=0.92, hip_width=1.06),
+              shoulder_width=0.93, hip_width=1.05),
 }
 # Segments that vary together (both sides share a factor): segment -> joints whose offset it scales.
 _SEGMENTS = {
@@ -80,6 +80,7 @@ def make_subject(subject_id: int, seed: int = 0, style: str | None = None) -> Su
         f *= preset["shoulder_width"] if seg == "clavicle" else preset["hip_width"] if seg == "hip" else 1.0
         for n in joints:
             scale[skel.index(n)] *= f
+    scale = np.clip(scale, 0.86, 1.14)  # about +-10% overall, a little more for single segments
     jitter = lambda sd: float(np.exp(sd * rng.standard_normal()))  # noqa: E731
     return Subject(
         name=f"s{subject_id:02d}", style=style, scale=scale, seed=int(seed),
