@@ -90,15 +90,21 @@ def write_npz(arrays: dict[str, np.ndarray], path, *, overwrite: bool = False) -
     return path
 
 
-def _frame_meta_keys(motions: list[Motion]) -> list[str]:
-    """Meta keys that every clip has as a per-frame array (T, ...) of one trailing shape and dtype kind."""
+def _frame_meta(motions: list[Motion]) -> dict[str, np.ndarray]:
+    """Per-frame meta arrays (T, ...) -> {key: has (C,) bool}, for keys whose arrays share one trailing shape and
+    dtype kind in every clip that has them (clips without the key are allowed)."""
     def sig(m, k):
         v = m.meta.get(k)
         ok = isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == len(m)
         return (v.shape[1:], v.dtype.kind) if ok else None
-    keys = sorted(motions[0].meta)
-    return [k for k in keys if sig(motions[0], k) is not None and all(sig(m, k) == sig(motions[0], k)
-                                                                          for m in motions)]
+    out = {}
+    for k in sorted({k for m in motions for k in m.meta}):
+        sigs = [sig(m, k) for m in motions]
+        has = np.array([s is not None for s in sigs])
+        if has.any() and len({s for s in sigs if s is not None}) == 1 and all(
+                k not in m.meta or s is not None for m, s in zip(motions, sigs, strict=True)):
+            out[k] = has
+    return out
 
 
 def save_motions(motions: list[Motion], path, *, meta: dict | None = None, overwrite: bool = False) -> Path:
@@ -106,8 +112,9 @@ def save_motions(motions: list[Motion], path, *, meta: dict | None = None, overw
     all frames, offsets (C+1,) frame offsets, per-clip fps, labels ('' = None), skeleton offsets (C, J, 3),
     End Site offsets (C, E, 3), JSON meta per clip and for the file, schema_version.
 
-    Per-frame meta arrays (T, ...) that all clips have are concatenated like the frames
-    ("frame_meta__<key>"); other meta goes to JSON (arrays and dataclasses come back as lists and dicts).
+    Per-frame meta arrays (T, ...) are concatenated like the frames ("frame_meta__<key>", over the clips
+    that have the key: "frame_meta_has__<key>"); other meta goes to JSON (arrays and dataclasses come back
+    as lists and dicts).
     All clips must share joint names and parents (bone lengths may differ).
     """
     if not motions:
@@ -132,10 +139,11 @@ def save_motions(motions: list[Motion], path, *, meta: dict | None = None, overw
                                       for m in motions]),
         "file_meta": np.array(_json(meta or {})),
     }
-    frame_keys = _frame_meta_keys(motions)
-    arrays["frame_meta_keys"] = np.array(frame_keys, dtype=str)
-    for k in frame_keys:
-        arrays[f"frame_meta__{k}"] = np.concatenate([m.meta[k] for m in motions])
+    frame_keys = _frame_meta(motions)
+    arrays["frame_meta_keys"] = np.array(list(frame_keys), dtype=str)
+    for k, has in frame_keys.items():
+        arrays[f"frame_meta_has__{k}"] = has
+        arrays[f"frame_meta__{k}"] = np.concatenate([m.meta[k] for m, h in zip(motions, has, strict=True) if h])
     arrays["clip_meta"] = np.array([_json({k: v for k, v in m.meta.items() if k not in frame_keys})
                                     for m in motions])
     for label in ("action", "style", "subject"):
@@ -171,12 +179,17 @@ def load_motions(path) -> list[Motion]:
     names, parents = tuple(str(n) for n in d["skeleton_names"]), tuple(int(p) for p in d["skeleton_parents"])
     ends = d["end_site_joints"]
     out, off = [], d["offsets"]
+    lengths = np.diff(off)
+    frame_meta = {}  # key -> (values, start offset per clip, has per clip)
+    for k in map(str, d["frame_meta_keys"]):
+        has = d.get(f"frame_meta_has__{k}", np.ones(len(lengths), bool))  # files of 21:20 had no mask
+        frame_meta[k] = d[f"frame_meta__{k}"], np.cumsum(np.where(has, lengths, 0)) - np.where(has, lengths, 0), has
     for c in range(len(off) - 1):
         sk = Skeleton(names, parents, d["skeleton_offsets"][c], dict(zip(ends.tolist(), d["end_site_offsets"][c],
                                                                            strict=True)))
         labels = {k: (str(d[k][c]) or None) for k in ("action", "style", "subject")}
         meta = json.loads(str(d["clip_meta"][c]))
-        meta.update({str(k): d[f"frame_meta__{k}"][off[c]:off[c + 1]] for k in d["frame_meta_keys"]})
+        meta.update({k: v[s0[c]:s0[c] + lengths[c]] for k, (v, s0, has) in frame_meta.items() if has[c]})
         out.append(Motion(d["rotations"][off[c]:off[c + 1]], d["root_positions"][off[c]:off[c + 1]], sk,
                           float(d["fps"][c]), meta=meta, **labels))
     return out
@@ -441,6 +454,15 @@ def _summary(x: np.ndarray) -> dict:
     return {k: round(float(v), 4) for k, v in zip(("min", "p01", "median", "p99", "max"), vals, strict=True)}
 
 
+def _gait_frames(motions: list[Motion]) -> dict:
+    """Frames per gait from the generator's per-frame meta["gait"] (indices into meta["gait_names"])."""
+    c = Counter()
+    for m in motions:
+        if "gait" in m.meta and "gait_names" in m.meta:
+            c.update(str(m.meta["gait_names"][int(g)]) for g in m.meta["gait"])
+    return dict(sorted(c.items()))
+
+
 def data_card(motions: list[Motion], *, name: str, seed: int, command: str, description: str) -> dict:
     """What a dataset holds: counts per action/style/subject, ranges of speed, heading rate, duration,
     root height, lowest toe height and contact share, and what real mocap has that it lacks."""
@@ -461,7 +483,7 @@ def data_card(motions: list[Motion], *, name: str, seed: int, command: str, desc
         "clips_redrawn_after_a_generator_error": sum(int(m.meta.get("attempt", 0) > 0) for m in motions),
         "fps": sorted({float(m.fps) for m in motions}),
         "counts": {k: dict(sorted(Counter(getattr(m, k) or "(none)" for m in motions).items()))
-                   for k in ("action", "style", "subject")},
+                   for k in ("action", "style", "subject")} | {"frames_per_gait": _gait_frames(motions)},
         "ranges": {"duration_s": _summary(np.array([m.duration for m in motions])),
                    "root_speed_m_per_s": _summary(cat(speeds)),
                    "clip_mean_speed_m_per_s": _summary(np.array(clip_speed)),

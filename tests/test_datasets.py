@@ -188,3 +188,19 @@ def test_load_dataset_generates_a_small_seeded_set(tmp_path):
     np.testing.assert_array_equal(back[2].meta["contacts"], ms[2].meta["contacts"])
     assert back[2].meta["speed"].dtype == np.float64 and back[2].meta["speed"].shape == (241,)
     assert back[2].meta["program"]["gaits"] == list(ms[2].meta["program"].gaits)
+
+
+def test_per_frame_meta_of_some_clips_is_stored_as_arrays(tmp_path):
+    ms = clips(3)
+    ms[0].meta["object"] = np.arange(len(ms[0]) * 3, dtype=float).reshape(-1, 3)
+    ms[2].meta["object"] = -np.ones((len(ms[2]), 3))
+    ms[1].meta["flags"] = np.zeros(len(ms[1]), bool)
+    path = D.save_motions(ms, tmp_path / "x.npz")
+    import zipfile
+
+    names = zipfile.ZipFile(path).namelist()
+    assert "frame_meta__object.npy" in names and "frame_meta__flags.npy" in names
+    back = D.load_motions(path)
+    np.testing.assert_array_equal(back[0].meta["object"], ms[0].meta["object"])
+    np.testing.assert_array_equal(back[2].meta["object"], ms[2].meta["object"])
+    assert "object" not in back[1].meta and back[1].meta["flags"].dtype == bool and "flags" not in back[0].meta
