@@ -182,7 +182,7 @@ def load_motions(path) -> list[Motion]:
     lengths = np.diff(off)
     frame_meta = {}  # key -> (values, start offset per clip, has per clip)
     for k in map(str, d["frame_meta_keys"]):
-        has = d.get(f"frame_meta_has__{k}", np.ones(len(lengths), bool))  # files of 21:20 had no mask
+        has = d.get(f"frame_meta_has__{k}", np.ones(len(lengths), bool))  # older files: every clip
         frame_meta[k] = d[f"frame_meta__{k}"], np.cumsum(np.where(has, lengths, 0)) - np.where(has, lengths, 0), has
     for c in range(len(off) - 1):
         sk = Skeleton(names, parents, d["skeleton_offsets"][c], dict(zip(ends.tolist(), d["end_site_offsets"][c],
