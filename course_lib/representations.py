@@ -56,6 +56,7 @@ CONTROL_NAMES = ("vel_forward", "vel_sideways", "yaw_rate")
 STATE_ROOT_NAMES = ("dx", "dz", "dyaw", "root_height", "root_pitch", "root_roll")
 CONTACT_NAMES = ("contact_left", "contact_right")
 QUAT_ROOT_NAMES = ("vel_forward", "vel_sideways", "root_height", "yaw_rate", "root_pitch", "root_roll")
+DIMS = {"positions_control": 66, "state_features": 68, "quaternion_root": 90}  # canonical 21 joints
 
 
 def feature_dim(name: str, num_joints: int = 21) -> int:

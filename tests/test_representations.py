@@ -142,7 +142,7 @@ def test_contact_bits_and_quaternion_continuity():
 
 def test_feature_names_and_dims():
     for name, d in zip(R.REPRESENTATIONS, (66, 68, 90), strict=True):
-        assert R.feature_dim(name) == d == len(R.feature_names(name))
+        assert R.feature_dim(name) == d == len(R.feature_names(name)) == R.DIMS[name]
     assert R.feature_names("state_features")[:3] == ["dx", "dz", "dyaw"]
     assert R.feature_names("state_features")[6] == "LeftUpLeg_rx"
     assert R.feature_names("quaternion_root")[-6:] == list(R.QUAT_ROOT_NAMES)
