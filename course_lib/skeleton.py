@@ -137,22 +137,36 @@ class Skeleton:
 
 
 @lru_cache(maxsize=64)
-def _depth_levels(parents: tuple[int, ...]) -> tuple[list[tuple[torch.Tensor, torch.Tensor]], torch.Tensor]:
+def _depth_levels(parents: tuple[int, ...]) -> tuple[torch.Tensor, list[tuple[int, int, object]], torch.Tensor]:
     """Joints grouped by depth in the tree; each level's parents all sit in the level above.
 
-    -> [(joint indices (L,), parent's position within the previous level (L,)) per level >= 1],
-    inverse permutation (J,) from level order back to joint order.
+    -> order (J,): joints in level order; per level >= 1: (start in level order, size L,
+    parents' positions within the level above as a slice (one shared parent, or consecutive
+    ones) or an index tensor); inverse (J,): each joint's position in level order.
     """
     depth: list[int] = []
     for p in parents:
         depth.append(0 if p < 0 else depth[p] + 1)
     levels = [[j for j, d in enumerate(depth) if d == k] for k in range(max(depth) + 1)]
-    slot = {j: i for lv in levels for i, j in enumerate(lv)}
-    steps = [(torch.tensor(lv), torch.tensor([slot[parents[j]] for j in lv])) for lv in levels[1:]]
-    order = torch.tensor([j for lv in levels for j in lv])
-    inverse = torch.empty_like(order)
-    inverse[order] = torch.arange(len(order))
-    return steps, inverse
+    within = {j: i for lv in levels for i, j in enumerate(lv)}
+    steps, start = [], 1
+    for lv in levels[1:]:
+        ps = [within[parents[j]] for j in lv]
+        if len(set(ps)) == 1:  # one shared parent: a (1, ...) view that broadcasts
+            sel = slice(ps[0], ps[0] + 1)
+        elif ps == list(range(ps[0], ps[0] + len(ps))):
+            sel = slice(ps[0], ps[0] + len(ps))
+        else:
+            sel = torch.tensor(ps)
+        steps.append((start, len(lv), sel))
+        start += len(lv)
+    order = [j for lv in levels for j in lv]
+    return torch.tensor(order), steps, torch.tensor([order.index(j) for j in range(len(parents))])
+
+
+def _take(x: torch.Tensor, sel) -> torch.Tensor:
+    """Rows of x (L, ...) by a slice (a view, no copy) or an index tensor."""
+    return x[sel] if isinstance(sel, slice) else x.index_select(0, sel)
 
 
 def forward_kinematics(
@@ -164,7 +178,7 @@ def forward_kinematics(
     position of joint 0; offsets: (J, 3) or (..., J, 3) rest offsets; parents: (J,)
     -> positions (..., J, 3), global rotations (..., J, 4).
 
-    Joints of equal depth are done together (7 steps for the canonical skeleton, not
+    Joints of equal depth are done together (6 steps for the canonical skeleton, not
     20) on a (J, 4, B) layout, so each step is a few dozen vectorised ops over B frames.
     """
     J = len(parents)
@@ -176,18 +190,20 @@ def forward_kinematics(
                          f"got {tuple(root_positions.shape)}")
     if offsets.shape[-2:] != (J, 3):
         raise ValueError(f"forward_kinematics: offsets must be ({J}, 3) or (..., {J}, 3), got {tuple(offsets.shape)}")
-    steps, inverse = _depth_levels(tuple(int(p) for p in parents))
-    q = rotations.reshape(-1, J, 4).permute(1, 2, 0).contiguous()  # (J, 4, B)
-    if offsets.dim() == 2:
-        o = offsets.to(rotations.dtype)[:, :, None]  # (J, 3, 1), broadcast over frames
+    order, steps, inverse = _depth_levels(tuple(int(p) for p in parents))
+    q = rotations.reshape(-1, J, 4).permute(1, 2, 0).index_select(0, order)  # (J, 4, B) in level order
+    off = offsets.to(rotations.dtype)
+    if off.dim() == 2:
+        o = off.index_select(0, order)[:, :, None]  # (J, 3, 1), broadcast over frames
     else:
-        o = offsets.to(rotations.dtype).expand(*lead, J, 3).reshape(-1, J, 3).permute(1, 2, 0)  # (J, 3, B)
+        o = off.expand(*lead, J, 3).reshape(-1, J, 3).permute(1, 2, 0).index_select(0, order)  # (J, 3, B)
     glob, pos = [q[:1]], [root_positions.reshape(1, -1, 3).transpose(1, 2)]  # level 0: the root
-    for joints, parent_slot in steps:
-        parent_rot = glob[-1].index_select(0, parent_slot)  # (L, 4, B)
+    for start, L, parent_sel in steps:
+        parent_rot = _take(glob[-1], parent_sel)  # (L, 4, B)
         # x_j = x_p + R_p o_j ;  R_j = R_p r_j
-        pos.append(pos[-1].index_select(0, parent_slot) + quat_rotate(parent_rot, o.index_select(0, joints), dim=1))
-        glob.append(quat_mul(parent_rot, q.index_select(0, joints), dim=1))
+        pos.append(_take(pos[-1], parent_sel) + quat_rotate(parent_rot, o[start:start + L], dim=1))
+        glob.append(quat_mul(parent_rot, q[start:start + L], dim=1))
+    # back to joint order; the (B, J, .) results are views of (J, ., B) buffers, not copies
     positions = torch.cat(pos, 0).index_select(0, inverse).permute(2, 0, 1)  # (B, J, 3)
     rots = torch.cat(glob, 0).index_select(0, inverse).permute(2, 0, 1)  # (B, J, 4)
     return positions.reshape(*lead, J, 3), rots.reshape(*lead, J, 4)

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from course_lib.motion import Motion, foot_contacts
-from course_lib.rotations import axis_angle_to_quat, quat_identity, quat_normalize
+from course_lib.rotations import axis_angle_to_quat, quat_identity, quat_mul, quat_normalize, quat_rotate
 from course_lib.skeleton import CANONICAL_JOINTS, Skeleton, forward_kinematics
 
 
@@ -131,6 +131,31 @@ def test_fk_per_frame_offsets_and_single_pose(sk):
         single, _ = forward_kinematics(q[i], root[i], off[i], sk.parents)
         torch.testing.assert_close(pos[i], single)
     torch.testing.assert_close(pos[2], pos[1] * 1.1)
+
+
+def _fk_joint_by_joint(q, root, offsets, parents):
+    """The plain definition, one joint after another: x_j = x_p + R_p o_j, R_j = R_p r_j."""
+    glob, pos = [q[..., 0, :]], [root]
+    for j in range(1, len(parents)):
+        p = parents[j]
+        pos.append(pos[p] + quat_rotate(glob[p], offsets[..., j, :]))
+        glob.append(quat_mul(glob[p], q[..., j, :]))
+    return torch.stack(pos, -2), torch.stack(glob, -2)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fk_on_random_trees_equals_joint_by_joint_definition(sk, seed):
+    """The depth-level batching of forward_kinematics is exact on any tree, not only the canonical one."""
+    rng = np.random.default_rng(seed)
+    J = int(rng.integers(2, 40))
+    parents = [-1] + [int(rng.integers(0, j)) for j in range(1, J)]
+    q = torch.from_numpy(random_quats((3, 4, J), seed=seed))
+    root, off = (torch.from_numpy(rng.normal(size=s)) for s in ((3, 4, 3), (J, 3)))
+    for offsets in (off, off.expand(3, 4, J, 3)):
+        pos, glob = forward_kinematics(q, root, offsets, parents)
+        ref_pos, ref_glob = _fk_joint_by_joint(q, root, offsets, parents)
+        torch.testing.assert_close(pos, ref_pos, atol=1e-12, rtol=0)
+        torch.testing.assert_close(glob, ref_glob, atol=1e-12, rtol=0)
 
 
 def test_fk_rejects_wrong_shapes(sk):

@@ -1,0 +1,133 @@
+"""Timings of the course's core operations, as a Markdown table.
+
+    python -m course_lib.bench                 # every benchmark, median of 20 runs
+    python -m course_lib.bench --only fk --repeat 50
+
+A benchmark is a setup function, registered with ``@register("name")``, that builds
+its inputs and returns a zero-argument callable; only that callable is timed (after
+``WARMUP`` untimed calls, which also trigger JAX compilation).  To add a row, add
+such a function here.  Importing this module runs nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import statistics
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+WARMUP = 3  # untimed calls before timing (JIT compilation, allocator warm-up)
+FK_SHAPE = (64, 240)  # batch x frames of the forward-kinematics benchmarks (x 21 joints)
+
+BENCHMARKS: list[tuple[str, Callable[[], Callable[[], object]]]] = []
+
+
+def register(name: str):
+    """Decorator: add ``setup() -> timed_callable`` to BENCHMARKS under ``name``."""
+    def add(setup: Callable[[], Callable[[], object]]):
+        BENCHMARKS.append((name, setup))
+        return setup
+    return add
+
+
+def time_ms(fn: Callable[[], object], repeat: int, warmup: int = WARMUP) -> list[float]:
+    """Wall-clock milliseconds of `repeat` calls of fn, after `warmup` untimed calls."""
+    for _ in range(warmup):
+        fn()
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        times.append(1000.0 * (time.perf_counter() - start))
+    return times
+
+
+def _fk_inputs(seed: int = 0):
+    """Random float32 numpy inputs for FK on the canonical skeleton: rotations (N, T, J, 4), root (N, T, 3)."""
+    import numpy as np
+
+    from course_lib.skeleton import Skeleton
+
+    sk = Skeleton.canonical()
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(*FK_SHAPE, sk.num_joints, 4)).astype(np.float32)
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return sk, q, rng.normal(size=(*FK_SHAPE, 3)).astype(np.float32), sk.offsets.astype(np.float32)
+
+
+@register("fk torch float32 64x240x21")
+def _fk_torch():
+    import torch
+
+    from course_lib.skeleton import forward_kinematics
+
+    sk, q, root, off = _fk_inputs()
+    q, root, off = torch.from_numpy(q), torch.from_numpy(root), torch.from_numpy(off)
+    return lambda: forward_kinematics(q, root, off, sk.parents)
+
+
+@register("fk jax jit float32 64x240x21")
+def _fk_jax():
+    import jax.numpy as jnp
+
+    from course_lib.jax_reference import forward_kinematics
+
+    sk, q, root, off = _fk_inputs()
+    q, root, off = jnp.asarray(q), jnp.asarray(root), jnp.asarray(off)
+    return lambda: forward_kinematics(q, root, off, sk.parents)[0].block_until_ready()
+
+
+def _cmu_clip() -> Path | None:
+    """../shared/data/cmu_07_01_walk.bvh beside the repository (or one of its parents), if present."""
+    here = Path(__file__).resolve().parent
+    for folder in here.parents:
+        path = folder / "shared" / "data" / "cmu_07_01_walk.bvh"
+        if path.is_file():
+            return path
+    return None
+
+
+@register("read_bvh cmu_07_01_walk")
+def _read_bvh():
+    if importlib.util.find_spec("course_lib.bvh") is None:
+        return None  # no reader yet: the row says so
+    from course_lib.bvh import CMU_SCALE, read_bvh
+
+    path = _cmu_clip()
+    return None if path is None else (lambda: read_bvh(path, CMU_SCALE))
+
+
+def run(only: str | None = None, repeat: int = 20) -> str:
+    """-> Markdown table of the selected benchmarks (name contains `only`): median and min ms."""
+    import torch
+
+    rows = [f"torch {torch.__version__}, {torch.get_num_threads()} threads, {os.cpu_count()} CPUs; "
+            f"median of {repeat} runs after {WARMUP} warm-up calls", "",
+            "| benchmark | median ms | min ms |", "|---|---:|---:|"]
+    for name, setup in BENCHMARKS:
+        if only and only not in name:
+            continue
+        fn = setup()
+        if fn is None:
+            rows.append(f"| {name} | n/a (module or data missing) | |")
+            continue
+        t = time_ms(fn, repeat)
+        rows.append(f"| {name} | {statistics.median(t):.2f} | {min(t):.2f} |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", help="run the benchmarks whose name contains this text")
+    parser.add_argument("--repeat", type=int, default=20, help="timed runs per benchmark (default 20)")
+    args = parser.parse_args(argv)
+    if args.repeat < 1:
+        parser.error("--repeat must be at least 1")
+    print(run(args.only, args.repeat))
+
+
+if __name__ == "__main__":
+    main()
