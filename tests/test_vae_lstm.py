@@ -149,3 +149,23 @@ def test_bad_inputs_raise():
         m.generate(torch.randn(2, 32, 3), z1=torch.randn(2, 5))
     with pytest.raises(ValueError, match="kernel"):
         VaeLstmConfig(kernel=4)
+
+
+def test_evaluation_decoding_round_trip():
+    """The reproduction's decoding of normalised test features gives back the clip's world positions,
+    so Tables 1-2 measure the models and not the bookkeeping; a predictor that copies the truth scores 0."""
+    import numpy as np
+
+    from course_lib.datasets import WindowDataset
+    from course_lib.evaluation import prediction_error
+    from course_lib.reproduce import DataSpec, generate_clips, test_batch, to_world, with_control
+
+    clips = generate_clips(DataSpec(n_clips=1), progress=False)
+    ds = WindowDataset(clips, "positions_control", length=240, fps=60)
+    x, starts = test_batch(ds)
+    world = to_world(x, ds, starts)
+    np.testing.assert_allclose(world[0], clips[0][:240].positions(), atol=2e-3)
+    assert max(prediction_error(world, world, [70, 210]).values()) == 0.0
+    shifted = with_control(x + 1.0, x[..., -3:])
+    torch.testing.assert_close(shifted[..., -3:], x[..., -3:])
+    assert prediction_error(to_world(shifted, ds, starts), world, [70])[70] > 1e-3
