@@ -16,9 +16,8 @@ from course_lib.synthetic import (
     make_subject,
     make_subjects,
     random_control_program,
-    realism_report,
 )
-from course_lib.synthetic.report import clip_figures, jump_figures
+from course_lib.synthetic.report import clip_figures, jump_figures, realism_report
 
 STEADY = {"idle": 0.0, "walk": 1.3, "jog": 2.6, "run": 4.2, "sidestep": 0.6, "backward": 0.8, "turn": 0.0}
 

@@ -28,8 +28,7 @@ from course_lib.synthetic.locomotion import (
     random_control_program,
 )
 from course_lib.synthetic.noise import add_noise
-from course_lib.synthetic.report import realism_report
 from course_lib.synthetic.subjects import Subject, make_subject, make_subjects
 
 __all__ = ["ACTIONS", "GAITS", "ControlProgram", "Subject", "add_noise", "generate_action", "generate_locomotion",
-           "integrate_root", "make_subject", "make_subjects", "random_control_program", "realism_report"]
+           "integrate_root", "make_subject", "make_subjects", "random_control_program"]

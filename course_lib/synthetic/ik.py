@@ -20,11 +20,13 @@ def rot(axis: str, angle) -> np.ndarray:
     """Rotation about a coordinate axis: angle (...) radians -> (..., 3, 3)."""
     a = np.asarray(angle, dtype=np.float64)
     c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    rows = {"x": ((o, z, z), (z, c, -s), (z, s, c)),
-            "y": ((c, z, s), (z, o, z), (-s, z, c)),
-            "z": ((c, -s, z), (s, c, z), (z, z, o))}[axis]
-    return np.stack([np.stack(r, -1) for r in rows], -2)
+    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]  # the rotated plane, i -> j for positive angles
+    out = np.zeros(a.shape + (3, 3))
+    k = 3 - i - j
+    out[..., k, k] = 1.0
+    out[..., i, i], out[..., j, j] = c, c
+    out[..., j, i], out[..., i, j] = s, -s
+    return out
 
 
 def mm(*ms: np.ndarray) -> np.ndarray:

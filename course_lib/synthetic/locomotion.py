@@ -83,7 +83,7 @@ class GaitParams:
 GAIT_PARAMS = {
     # speed, cadence, slope, v0, duty, heel strike, toe off, heel off, clearance, width, bob, bob_low, crouch,
     # lean, arm, elbow, twist, roll, sway, plant  (see GaitParams)
-    "idle": GaitParams((0.0, 0.0), 0.0, 0.0, 0.0, 0.75, 0, 0, 1.0, 0.05, 1.1, 0.0, 0.0, 0.005, 0, 0, 10, 0, 0, 0, 0.5),
+    "idle": GaitParams((0.0, 0.0), 1.9, 0.4, 1.3, 0.75, 0, 0, 1.0, 0.05, 1.1, 0.0, 0.0, 0.005, 0, 0, 10, 0, 0, 0, 0.5),
     "walk": GaitParams((0.8, 1.8), 1.9, 0.4, 1.3, 0.6, 15, 55, 0.45, 0.08, 0.65, 0.01, 0.06, 0.005, 3, 18, 18, 6, 4,
                        0.022, 0.43),
     "jog": GaitParams((2.0, 3.2), 2.6, 0.2, 2.5, 0.44, 8, 60, 0.35, 0.17, 0.5, 0.02, 0.22, 0.03, 7, 30, 80, 7, 3,
@@ -98,7 +98,7 @@ GAIT_PARAMS = {
                        0.01, 0.5),
 }
 # steps/s bounds per gait after the subject's cadence factor (walk: 96-125 steps/min, as in human data)
-CADENCE_BOUNDS = {"idle": (0.0, 0.0), "walk": (1.6, 2.08), "jog": (2.35, 2.85), "run": (2.6, 3.2),
+CADENCE_BOUNDS = {"idle": (1.6, 2.08), "walk": (1.6, 2.08), "jog": (2.35, 2.85), "run": (2.6, 3.2),
                   "sidestep": (1.6, 2.3), "backward": (1.5, 2.1), "turn": (1.5, 2.0)}
 _NAMES = [f.name for f in fields(GaitParams)][1:]  # numeric fields, blended by gait weights
 _TABLE = np.array([[getattr(GAIT_PARAMS[g], n) for n in _NAMES] for g in GAITS])  # (G, P)
@@ -230,18 +230,18 @@ def _min_jerk(x):
     return x ** 3 * (10 - 15 * x + 6 * x * x)
 
 
-def gait_phase(rate: np.ndarray, idle: np.ndarray, fps: float, phase0: float) -> np.ndarray:
-    """Gait phase phi (T,) cycles from rate (T,) cycles/s; while idle (T,) > 0.5 the phase walks on
-    to the next double-support point of PARK and stops there, so both feet stay planted."""
+def gait_phase(rate: np.ndarray, park: np.ndarray, fps: float, phase0: float) -> np.ndarray:
+    """Gait phase phi (T,) cycles from rate (T,) cycles/s; where park (T,) is True (idle, standing still)
+    the phase walks on to the next double-support point of PARK and stops there, so both feet stay planted."""
     phi = np.empty(len(rate))
     p = phase0
-    park = np.array(PARK)
+    points = np.array(PARK)
     for i in range(len(rate)):  # scalar loop: cheap, and parking is sequential by nature
         step = rate[i] / fps
-        if idle[i] > 0.5:
-            gap = (park - p) % 1.0
+        if park[i]:
+            gap = (points - p) % 1.0
             gap[gap > 1 - 1e-9] = 0.0
-            step = min(max(step, 0.9 / fps), gap.min())
+            step = min(max(step, 0.8 / fps), gap.min())
         p += step
         phi[i] = p
     return phi
@@ -448,7 +448,9 @@ def locomotion_targets(subject: Subject, program: ControlProgram | None, duratio
     prm = _blend(ctl["weights"])
     speed = np.linalg.norm(ctl["velocity"], axis=-1)
     cadence = _cadence(speed, ctl["weights"], subject.cadence / subject.step_length)  # steps/s
-    phi = gait_phase(cadence / 2, ctl["weights"][:, GAITS.index("idle")], FPS, float(rng.uniform()))
+    # park the gait (both feet down) only when idle *and* the body is still: never drag a planted foot
+    park = (ctl["weights"][:, GAITS.index("idle")] > 0.5) & (speed < 0.1) & (np.abs(ctl["heading_rate"]) < 0.2)
+    phi = gait_phase(cadence / 2, park, FPS, float(rng.uniform()))
     skel = subject.skeleton()
     geo = {s: leg_geometry(skel, s) for s in ("Left", "Right")}
     feet = plan_feet(ctl, path, phi, prm, geo)
