@@ -97,24 +97,18 @@ def test_version_matches_pyproject():
 # course_lib module.  Anything printed after the marker, or any change, is an import-time side effect.
 IMPORT_PROBE = r"""
 import importlib, json, os, pkgutil, sys
-for lib in ["numpy", "scipy", "torch", "jax", "jax.numpy", "matplotlib", "matplotlib.pyplot", "pyvista",
-            "skimage", "imageio", "PIL", "tqdm"]:
-    try:
-        importlib.import_module(lib)
-    except ImportError:
-        pass
+package_name, third_party, watched = sys.argv[2], sys.argv[3].split(","), sys.argv[4:]
+for lib in third_party:
+    importlib.import_module(lib)
 import numpy as np, torch
 
-package_name, watched = sys.argv[2], sys.argv[3:]
-
 def files(roots):
+    # new files only, and not source: teammates may be editing course_lib while this runs
     found = {}
     for root in roots:
         for folder, dirs, names in os.walk(root):
             dirs[:] = [d for d in dirs if d != "__pycache__"]
-            for name in names:
-                path = os.path.join(folder, name)
-                found[path] = os.stat(path).st_mtime_ns
+            found.update((os.path.join(folder, n), "") for n in names if not n.endswith((".py", ".pyc")))
     return found
 
 def state():
@@ -130,23 +124,30 @@ for name in names:
     importlib.import_module(name)
 sys.stdout.flush(); sys.stderr.flush()
 after = state()
-changed = {key: (sorted(set(before[key].items()) ^ set(after[key].items())) if isinstance(before[key], dict)
+changed = {key: (sorted(set(after[key].items()) - set(before[key].items())) if isinstance(before[key], dict)
                  else [before[key], after[key]]) for key in before if before[key] != after[key]}
+changed = {key: value for key, value in changed.items() if value}
 with open(sys.argv[1], "w") as fh:
     json.dump({"modules": [package_name] + names, "changed": changed}, fh, default=str)
 """
 
 
-def import_probe(package: str, tmp_path: Path, watched: list[Path], pythonpath: Path | None = None) -> dict:
-    """Import every module of `package` in a fresh interpreter (cwd = an empty folder):
-    {'modules', 'changed', 'stdout', 'stderr'}, the output being only what was printed during those imports."""
+THIRD_PARTY = ["numpy", "scipy", "torch", "jax", "jax.numpy", "matplotlib", "matplotlib.pyplot", "pyvista",
+               "skimage", "imageio", "PIL", "tqdm"]
+
+
+def import_probe(package: str, tmp_path: Path, watched: list[Path], pythonpath: Path | None = None,
+                 third_party: tuple[str, ...] = ("numpy", "torch")) -> dict:
+    """Import `third_party`, then every module of `package`, in a fresh interpreter (cwd = an empty folder):
+    {'modules', 'changed', 'stdout', 'stderr'}, the output being only what was printed during the package's imports."""
     cwd, report = tmp_path / "cwd", tmp_path / "report.json"
     cwd.mkdir()
     env = {k: v for k, v in os.environ.items() if not k.startswith(("VTK_", "PYVISTA_", "COURSE_MODE"))}
     env.update(MPLCONFIGDIR=str(tmp_path / "mpl"), MPLBACKEND="Agg")
     if pythonpath is not None:
         env["PYTHONPATH"] = str(pythonpath)
-    args = [sys.executable, "-c", IMPORT_PROBE, str(report), package, str(cwd), *map(str, watched)]
+    args = [sys.executable, "-c", IMPORT_PROBE, str(report), package, ",".join(third_party), str(cwd)]
+    args += [str(path) for path in watched]
     proc = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, f"importing {package} failed:\n{proc.stderr[-3000:]}"
     result = json.loads(report.read_text())
@@ -171,7 +172,7 @@ def test_import_probe_catches_side_effects(tmp_path):
 
 
 def test_every_module_imports_without_side_effects(tmp_path):
-    result = import_probe("course_lib", tmp_path, [REPO / "course_lib", REPO / "data"])
+    result = import_probe("course_lib", tmp_path, [REPO / "course_lib", REPO / "data"], third_party=THIRD_PARTY)
     assert result["stdout"] == "", "course_lib printed to stdout at import"
     assert result["stderr"] == "", "course_lib printed to stderr at import"
     assert result["changed"] == {}, f"importing course_lib changed global state: {result['changed']}"
