@@ -19,7 +19,7 @@ from course_lib.synthetic import (
 )
 from course_lib.synthetic.report import clip_figures, jump_figures, realism_report
 
-STEADY = {"idle": 0.0, "walk": 1.3, "jog": 2.6, "run": 4.2, "sidestep": 0.6, "backward": 0.8, "turn": 0.0}
+STEADY = {"idle": 0.0, "walk": 1.3, "jog": 2.6, "run": 4.2, "sidestep": 0.45, "backward": 0.8, "turn": 0.0}
 
 
 @pytest.fixture(scope="module")

@@ -90,7 +90,7 @@ GAIT_PARAMS = {
                       0.012, 0.45),
     "run": GaitParams((3.2, 5.0), 2.85, 0.15, 4.0, 0.3, 4, 65, 0.3, 0.28, 0.4, 0.025, 0.155, 0.04, 11, 40, 90, 9, 3,
                       0.008, 0.45),
-    "sidestep": GaitParams((0.3, 0.8), 1.9, 0.5, 0.5, 0.6, 0, 10, 0.6, 0.06, 1.2, 0.01, 0.08, 0.02, 1, 3, 15, 0, 2,
+    "sidestep": GaitParams((0.25, 0.55), 2.1, 0.6, 0.4, 0.6, 0, 10, 0.6, 0.06, 0.8, 0.01, 0.08, 0.02, 1, 3, 15, 0, 2,
                            0.0, 0.5),
     "backward": GaitParams((0.4, 1.1), 1.7, 0.4, 0.8, 0.64, 0, 15, 0.7, 0.06, 0.7, 0.01, 0.07, 0.02, -2, 10, 15, 3,
                            3, 0.015, 0.6),
@@ -99,7 +99,7 @@ GAIT_PARAMS = {
 }
 # steps/s bounds per gait after the subject's cadence factor (walk: 96-125 steps/min, as in human data)
 CADENCE_BOUNDS = {"idle": (1.6, 2.08), "walk": (1.6, 2.08), "jog": (2.35, 2.85), "run": (2.6, 3.2),
-                  "sidestep": (1.6, 2.3), "backward": (1.5, 2.1), "turn": (1.5, 2.0)}
+                  "sidestep": (1.7, 2.4), "backward": (1.5, 2.1), "turn": (1.5, 2.0)}
 _NAMES = [f.name for f in fields(GaitParams)][1:]  # numeric fields, blended by gait weights
 _TABLE = np.array([[getattr(GAIT_PARAMS[g], n) for n in _NAMES] for g in GAITS])  # (G, P)
 DIRECTIONS = {"walk": 0.0, "jog": 0.0, "run": 0.0, "backward": np.pi, "idle": 0.0, "turn": 0.0}
@@ -353,7 +353,10 @@ def plan_feet(ctl: dict, path: np.ndarray, phi: np.ndarray, prm: dict, subject_g
             tm = np.where(np.isfinite(td), td + before, np.where(np.isfinite(lo), lo - 0.3, t[0]))
         tm = np.clip(tm, t[0], t[-1])
         x, z, yaw = (np.interp(tm, t, path[:, i]) for i in range(3))
-        width = np.interp(tm, t, prm["width"]) * abs(geo.hip[0])
+        # half stance width; moving sideways, each foot also sits S/4 further out (S = lateral stride per cycle),
+        # so the trailing foot closes in to the nominal width and never crosses the leading one
+        lateral_stride = np.abs(ctl["velocity"][:, 0]) * 2.0 / np.maximum(ctl["cadence"], 1e-3)
+        width = np.interp(tm, t, prm["width"] * abs(geo.hip[0]) + lateral_stride / 4)
         # toe joint at mid-stance: lateral offset, ankle under the hip (toe ahead by the foot's length)
         local = np.stack([sign * width, np.full_like(width, geo.toe_height), np.full_like(width, geo.toe[2])], -1)
         plant = np.stack([x, np.zeros_like(x), z], -1) + apply(rot("y", yaw), local)
@@ -453,7 +456,7 @@ def locomotion_targets(subject: Subject, program: ControlProgram | None, duratio
     phi = gait_phase(cadence / 2, park, FPS, float(rng.uniform()))
     skel = subject.skeleton()
     geo = {s: leg_geometry(skel, s) for s in ("Left", "Right")}
-    feet = plan_feet(ctl, path, phi, prm, geo)
+    feet = plan_feet(dict(ctl, cadence=cadence), path, phi, prm, geo)
     tg = body_targets(subject, ctl, path, phi, prm, feet, geo, float(rng.uniform(0, 2 * np.pi)))
     sl = slice(i0, i0 + n)
     meta = dict(program=program, speed=speed[sl], velocity=ctl["velocity"][sl],
