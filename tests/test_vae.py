@@ -122,3 +122,31 @@ def test_skip_noise_decoder_collapses_and_free_bits_keep_kl():
     assert kls[1.0] > 0.5  # free bits: about 1 nat per dim is used
     with pytest.raises(ValueError, match="noisy pose"):
         model.sample(2)
+
+
+def test_exercise_checks_accept_the_reference_and_reject_mistakes():
+    from course_lib.solutions import vae_basics as ans
+
+    ans.check_kl(ans.kl_closed_form)
+    with pytest.raises(AssertionError, match="KL values differ"):
+        ans.check_kl(lambda mu, logvar: 0.5 * (mu**2 + logvar.exp() - logvar).sum(-1))  # forgot the -1
+    ans.check_reparameterise(ans.reparameterise)
+    with pytest.raises(AssertionError, match="exp\\(logvar / 2\\)"):
+        ans.check_reparameterise(lambda mu, logvar, eps: mu + logvar.exp() * eps)  # used the variance
+    model = PoseVae(VaeConfig.cpu(x_dim=6, z_dim=2, hidden=8))
+    x = torch.randn(10, 6)
+    ans.check_elbo(ans.elbo_per_pose, model, x)
+    with pytest.raises(AssertionError, match="ELBO differs"):
+        ans.check_elbo(lambda m, x, eps: ans.elbo_per_pose(m, x, eps) + 0.5 * math.log(2 * math.pi), model, x)
+    with pytest.raises(AssertionError, match="KL should fall"):
+        ans.check_beta_sweep([{"beta": b, "kl": 1.0, "recon": 0.0} for b in (0.1, 1, 10)], x, x, steps=1)
+
+
+def test_beta_sweep_reference_kl_falls_with_beta():
+    from course_lib.solutions import vae_basics as ans
+
+    x = _toy_poses(n=512)
+    res = ans.beta_sweep(x[:400], x[400:], [0.3, 3.0], steps=150, hidden=32, obs_std=0.3)
+    assert res[0]["kl"] > res[1]["kl"] + 0.5
+    ans.check_beta_sweep(ans.beta_sweep(x[:400], x[400:], [0.3, 1.0, 3.0], steps=60, hidden=32, obs_std=0.3),
+                         x[:400], x[400:], steps=60, hidden=32, obs_std=0.3)

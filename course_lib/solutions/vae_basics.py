@@ -1,0 +1,126 @@
+"""Reference answers and self-checks for the exercises of notebooks/01_vae_basics.ipynb.
+
+Students write their own version in the notebook; each ``check_*`` runs it on fixed inputs and
+compares it with the reference here, raising an AssertionError that says what is wrong.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from course_lib.models.vae import PoseVae, VaeConfig
+from course_lib.training import fit, seed_everything
+
+__all__ = ["beta_sweep", "check_beta_sweep", "check_elbo", "check_kl", "check_reparameterise", "elbo_per_pose",
+           "kl_closed_form", "reparameterise"]
+
+
+# ----------------------------------------------------------------------------- reference answers
+
+
+def kl_closed_form(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(N(mu, diag e^logvar) || N(0, I)) summed over dims.  (N, D) -> (N,)."""
+    return 0.5 * (mu**2 + logvar.exp() - logvar - 1).sum(-1)
+
+
+def reparameterise(mu: torch.Tensor, logvar: torch.Tensor, eps: torch.Tensor) -> torch.Tensor:
+    """z = sigma * eps + mu with sigma = exp(logvar / 2)   -- Habibie eq. (3).  (N, D) -> (N, D)."""
+    return torch.exp(0.5 * logvar) * eps + mu
+
+
+def elbo_per_pose(model: PoseVae, x: torch.Tensor, eps: torch.Tensor) -> torch.Tensor:
+    """One-sample ELBO of each pose, log p(x|z) - KL(q(z|x) || p(z))   -- Habibie eq. (2).  (N, D) -> (N,)."""
+    mu, logvar = model.encode(x)
+    z = reparameterise(mu, logvar, eps)
+    s = model.config.obs_std
+    log_px = -0.5 * (((x - model.decode(z)) / s) ** 2 + 2 * math.log(s) + math.log(2 * math.pi)).sum(-1)
+    return log_px - kl_closed_form(mu, logvar)
+
+
+def _minibatches(x: torch.Tensor, size: int, seed: int):
+    """A callable returning random rows of x (N, D) -> (size, D), seeded."""
+    g = torch.Generator().manual_seed(seed)
+    return lambda: x[torch.randint(0, len(x), (size,), generator=g)]
+
+
+def beta_sweep(x_train: torch.Tensor, x_test: torch.Tensor, betas, *, steps: int, seed: int = 0,
+               z_dim: int = 2, obs_std: float = 0.1, hidden: int = 64) -> list[dict]:
+    """For each beta, train a pose VAE (seeded) and return its test {'beta', 'kl', 'recon'} (nats per pose)."""
+    results = []
+    for beta in betas:
+        seed_everything(seed)
+        model = PoseVae(VaeConfig.cpu(x_dim=x_train.shape[1], z_dim=z_dim, obs_std=obs_std, hidden=hidden, beta=beta))
+        fit(model, _minibatches(x_train, 128, seed), steps=steps, lr=3e-3, progress=False)
+        model.eval()
+        with torch.no_grad():
+            out = model.loss(x_test, generator=torch.Generator().manual_seed(seed))
+        results.append({"beta": float(beta), "kl": out["kl"].item(), "recon": out["recon"].item()})
+    return results
+
+
+# ----------------------------------------------------------------------------- self-checks
+
+
+def _inputs(n=6, d=3, seed=0, dtype=torch.float64):
+    g = torch.Generator().manual_seed(seed)
+    return (torch.randn(n, d, generator=g, dtype=dtype), torch.randn(n, d, generator=g, dtype=dtype),
+            torch.randn(n, d, generator=g, dtype=dtype))
+
+
+def check_kl(fn) -> None:
+    """Exercise 1: fn(mu, logvar) -> (N,) closed-form KL to N(0, I)."""
+    mu, logvar, _ = _inputs()
+    got, ref = fn(mu, logvar), kl_closed_form(mu, logvar)
+    assert got.shape == ref.shape, f"KL should be {tuple(ref.shape)}, one value per row; got {tuple(got.shape)}"
+    assert torch.allclose(got, ref, atol=1e-8), f"KL values differ from the reference: {got} vs {ref}"
+    assert torch.allclose(fn(torch.zeros(2, 3), torch.zeros(2, 3)), torch.zeros(2)), "KL(N(0,I)||N(0,I)) must be 0"
+    print(f"check_kl passed: KL = {[round(v, 4) for v in got.tolist()]}")
+
+
+def check_reparameterise(fn) -> None:
+    """Exercise 2: fn(mu, logvar, eps) -> z, differentiable in mu and logvar."""
+    mu, logvar, eps = _inputs(seed=1)
+    mu.requires_grad_(True)
+    logvar.requires_grad_(True)
+    z = fn(mu, logvar, eps)
+    ref = reparameterise(mu, logvar, eps)
+    assert z.shape == ref.shape, f"z should have shape {tuple(ref.shape)}, got {tuple(z.shape)}"
+    assert torch.allclose(z, ref, atol=1e-8), "z differs from sigma * eps + mu (is sigma exp(logvar / 2)?)"
+    z.sum().backward()
+    assert mu.grad is not None and logvar.grad is not None, "gradients must flow to mu and logvar"
+    assert torch.allclose(logvar.grad, 0.5 * torch.exp(0.5 * logvar.detach()) * eps), "wrong gradient wrt logvar"
+    print("check_reparameterise passed: values and gradients match eq. (3)")
+
+
+def check_elbo(fn, model: PoseVae, x: torch.Tensor) -> None:
+    """Exercise 3: fn(model, x, eps) -> (N,) one-sample ELBO per pose."""
+    eps = torch.randn(len(x), model.config.z_dim, generator=torch.Generator().manual_seed(2), dtype=x.dtype)
+    with torch.no_grad():
+        got, ref = fn(model, x, eps), elbo_per_pose(model, x, eps)
+        loss = model.loss(x, eps=eps)
+    assert got.shape == ref.shape, f"ELBO should have shape {tuple(ref.shape)}, got {tuple(got.shape)}"
+    assert torch.allclose(got, ref, rtol=1e-5, atol=1e-3), f"ELBO differs: mean {got.mean():.3f} vs {ref.mean():.3f}"
+    assert torch.allclose(got.mean(), loss["elbo"], rtol=1e-5, atol=1e-3), "mean ELBO differs from model.loss"
+    print(f"check_elbo passed: mean ELBO = {got.mean().item():.2f} nats per pose")
+
+
+def check_beta_sweep(results: list[dict], x_train, x_test, *, steps: int, seed: int = 0, rel_tol: float = 1e-3,
+                     **kwargs) -> None:
+    """Exercise 4: results of a beta sweep (list of {'beta', 'kl', 'recon'}, increasing beta).
+
+    The middle beta is re-run with the reference ``beta_sweep`` (kwargs go to it); KL and recon must agree
+    within ``rel_tol`` (an independent implementation with other seeds needs a loose one, e.g. 0.25).
+    """
+    betas = [r["beta"] for r in results]
+    assert betas == sorted(betas) and len(betas) >= 3, "sweep at least 3 betas, in increasing order"
+    kls = [r["kl"] for r in results]
+    assert all(a > b for a, b in zip(kls, kls[1:], strict=False)), f"KL should fall as beta grows, got {kls}"
+    mid = len(results) // 2  # re-run the reference at one beta only (time)
+    ref = beta_sweep(x_train, x_test, [betas[mid]], steps=steps, seed=seed, **kwargs)[0]
+    for key in ("kl", "recon"):
+        assert math.isclose(results[mid][key], ref[key], rel_tol=rel_tol, abs_tol=1.0 if rel_tol > 0.01 else 1e-2), \
+            f"beta={betas[mid]}: your {key} {results[mid][key]:.3f} differs from the reference {ref[key]:.3f}"
+    print(f"check_beta_sweep passed: KL falls {kls[0]:.2f} -> {kls[-1]:.2f} nats as beta goes "
+          f"{betas[0]} -> {betas[-1]}")
