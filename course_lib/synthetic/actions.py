@@ -217,7 +217,7 @@ def _lift(sub: Subject, rng: np.random.Generator, duration: float | None) -> Mot
     yaw = meta["root_path"][:, 2]
     fwd = np.stack([np.sin(yaw), 0 * yaw, np.cos(yaw)], -1)
     left = np.stack([np.cos(yaw), 0 * yaw, -np.sin(yaw)], -1)
-    drop, back, pitch, flex = (0.42, 0.12, 0.5, 0.3) if squat else (0.2, 0.16, 0.9, 0.38)
+    drop, back, pitch, flex = (0.47, 0.12, 0.62, 0.32) if squat else (0.27, 0.16, 1.0, 0.4)
     tg.pelvis_pos = tg.pelvis_pos - drop * b[:, None] * np.array([0, 1, 0]) - back * b[:, None] * fwd
     tg.pelvis_rot = tg.pelvis_rot @ rot("x", pitch * b)
     tg.spine = tg.spine @ rot("x", flex * b)[:, None]
