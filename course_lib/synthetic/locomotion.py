@@ -84,7 +84,7 @@ GAIT_PARAMS = {
     # speed, cadence, slope, v0, duty, heel strike, toe off, heel off, clearance, width, bob, bob_low, crouch,
     # lean, arm, elbow, twist, roll, sway, plant  (see GaitParams)
     "idle": GaitParams((0.0, 0.0), 1.9, 0.4, 1.3, 0.75, 0, 0, 1.0, 0.05, 1.1, 0.0, 0.0, 0.005, 0, 0, 10, 0, 0, 0, 0.5),
-    "walk": GaitParams((0.8, 1.8), 1.9, 0.4, 1.3, 0.6, 15, 55, 0.45, 0.08, 0.65, 0.01, 0.06, 0.005, 3, 18, 18, 6, 4,
+    "walk": GaitParams((0.8, 1.8), 1.9, 0.45, 1.3, 0.6, 15, 55, 0.45, 0.08, 0.65, 0.01, 0.06, 0.005, 3, 18, 18, 6, 4,
                        0.022, 0.43),
     "jog": GaitParams((2.0, 3.2), 2.6, 0.2, 2.5, 0.44, 8, 60, 0.35, 0.17, 0.5, 0.02, 0.22, 0.03, 7, 30, 80, 7, 3,
                       0.012, 0.45),

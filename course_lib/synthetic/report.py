@@ -14,7 +14,8 @@ Figures (per label: the per-frame gait of locomotion clips, else the clip's acti
 - duty / flight: stance fraction per foot and fraction of frames with both feet off the floor;
 - heading_deg_s: 95th percentile of |yaw rate| of the root path (deg/s);
 - contact_agree: agreement of ground-truth contacts with `course_lib.motion.foot_contacts`;
-- jumps: flight time, flight height and the ballistic prediction g t^2 / 8.
+- jumps: flight time, flight height, the ballistic prediction g t^2 / 8 and g fitted to the root's
+  height over the airborne frames (a parabola: 9.81 m/s^2 for a ballistic flight).
 
 Taught in notebooks/00_data_and_skeletons.ipynb (the data card).
 """
@@ -84,8 +85,10 @@ def jump_figures(m: Motion) -> dict | None:
     a, b = idx[0], idx[-1]  # the longest gap would matter for several jumps; one jump per clip here
     y = m.root_positions[:, 1]
     t = (b - a + 1) / m.fps
+    # y(t) = c0 + c1 t + c2 t^2 over the airborne frames: a ballistic flight has -2 c2 = g
+    g_fit = -2 * np.polyfit(np.arange(a, b + 1) / m.fps, y[a:b + 1], 2)[0] if b - a >= 2 else np.nan
     return dict(flight_s=t, height_m=float(y[a:b + 1].max() - 0.5 * (y[a - 1] + y[b + 1])),
-                ballistic_m=G * t * t / 8)
+                ballistic_m=G * t * t / 8, g_fit=float(g_fit))
 
 
 def realism_report(motions: list[Motion]) -> dict:
@@ -135,13 +138,14 @@ def _summarise(a: dict) -> dict:
         out["jump_flight_s"] = float(np.mean([x["flight_s"] for x in j]))
         out["jump_height_m"] = float(np.mean([x["height_m"] for x in j]))
         out["jump_ballistic_m"] = float(np.mean([x["ballistic_m"] for x in j]))
+        out["jump_g_fit"] = float(np.mean([x["g_fit"] for x in j]))
     return out
 
 
 def format_report(rep: dict) -> str:
     """The report as an aligned text table."""
     cols = ["frames", "skate_cm_s", "min_foot_cm", "bone_err_m", "speed_m_s", "cadence_spm", "duty", "flight",
-            "heading_deg_s_p95", "contact_agree", "jump_flight_s", "jump_height_m", "jump_ballistic_m"]
+            "heading_deg_s_p95", "contact_agree", "jump_flight_s", "jump_height_m", "jump_ballistic_m", "jump_g_fit"]
     lines = []
     for lab in sorted(rep, key=lambda k: (k == "all", k)):
         r = rep[lab]
