@@ -100,15 +100,31 @@ def _read_bvh():
     return None if path is None else (lambda: read_bvh(path, CMU_SCALE))
 
 
+@register("action classifier features 64x60x90 (FID/IS)")
+def _classifier_features():
+    # held-out accuracies: python -m course_lib.evaluation.classifiers --eval
+    import torch
+
+    from course_lib.evaluation.classifiers import checkpoint_path, load_classifier
+
+    if not checkpoint_path("action").exists():
+        return None
+    clf, x = load_classifier("action"), torch.randn(64, 60, 90)
+    return lambda: clf.features(x).detach()
+
+
 def run(only: str | None = None, repeat: int = 20) -> str:
     """-> Markdown table of the selected benchmarks (name contains `only`): median and min ms."""
     import torch
 
+    names = [name for name, _ in BENCHMARKS if not only or only in name]
+    if not names:
+        raise ValueError(f"no benchmark name contains {only!r}; benchmarks: {', '.join(n for n, _ in BENCHMARKS)}")
     rows = [f"torch {torch.__version__}, {torch.get_num_threads()} threads, {os.cpu_count()} CPUs; "
             f"median of {repeat} runs after {WARMUP} warm-up calls", "",
             "| benchmark | median ms | min ms |", "|---|---:|---:|"]
     for name, setup in BENCHMARKS:
-        if only and only not in name:
+        if name not in names:
             continue
         fn = setup()
         if fn is None:
@@ -126,7 +142,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.repeat < 1:
         parser.error("--repeat must be at least 1")
-    print(run(args.only, args.repeat))
+    try:
+        print(run(args.only, args.repeat))
+    except ValueError as err:
+        parser.error(str(err))
 
 
 if __name__ == "__main__":

@@ -174,6 +174,7 @@ class ClassifierData:
     num_subjects: int = 16  # population size
     test_subjects: int = 4  # the last subjects, held out for accuracy and tests
     takes: int = 3  # clips per (subject, action, style) for training
+    test_takes: int = 2  # clips per (subject, action, style) for the held-out accuracy
     seed: int = 0  # population and clip seeds (datasets' default)
     generate_fps: float = 30.0  # clip frame rate (the generator works at 120 fps and resamples)
 
@@ -236,7 +237,7 @@ def train_classifier(task: str, data: ClassifierData | None = None, steps: int =
     sampler = _window_sampler(feats, labels_of(train, config), window, batch_size, np.random.default_rng(seed))
     history = fit(model, sampler, steps=steps, steps_per_epoch=50, lr=lr, seed=seed, progress=progress,
                   desc=f"{task} classifier")
-    test = [m for m in data.motions(test_subjects, 1, progress) if m.action in config.actions]
+    test = [m for m in data.motions(test_subjects, data.test_takes, progress) if m.action in config.actions]
     return model.eval(), history, accuracy(model, test)
 
 
@@ -278,7 +279,7 @@ def evaluate_shipped(data: ClassifierData | None = None) -> dict[str, float]:
     """Held-out accuracies of the shipped checkpoints, on the clips of the actions each was trained for:
     {'action': acc, 'style': acc (walk, jog, lift)}, plus 'style (all actions)' for reference."""
     data = data or ClassifierData()
-    test = data.motions(data.split()[1])
+    test = data.motions(data.split()[1], data.test_takes)
     out = {}
     for task in ("action", "style"):
         clf = load_classifier(task)
