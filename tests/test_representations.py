@@ -187,3 +187,15 @@ def test_control_matches_the_generators_commands():
         c = R.encode_positions_control(m)[:, -3:].mean(0)  # (forward, sideways, yaw rate)
         v, w = m.meta["velocity"].mean(0), m.meta["heading_rate"].mean()  # v: (x left, z forward)
         np.testing.assert_allclose(c, [v[1], v[0], w], atol=0.1)
+
+
+def test_contact_bits_agree_with_the_generators_stance():
+    """state_features' contact bits (motion.foot_contacts thresholds) vs the generator's ground-truth stance."""
+    from course_lib.synthetic import generate_locomotion, make_subject
+
+    agree = []
+    for i in range(3):
+        m = generate_locomotion(make_subject(i, seed=2), None, duration=4.0, fps=60, seed=10 + i)
+        bits = R.encode_state_features(m)[:, -2:]
+        agree.append((bits == m.meta["contacts"]).mean())
+    assert np.mean(agree) > 0.9
