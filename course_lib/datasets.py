@@ -256,6 +256,15 @@ def stats_path(data_path, representation: str, fps: float) -> Path:
     return p.with_name(f"{p.stem}.stats.{representation}.{fps:g}fps.npz")
 
 
+def time_reversed(m: Motion) -> Motion:
+    """The clip played backwards (per-frame meta arrays reversed too), meta["time_reversed"] = True."""
+    T = len(m)
+    meta = {k: (v[::-1].copy() if isinstance(v, np.ndarray) and v.ndim and len(v) == T else v)
+            for k, v in m.meta.items()}
+    return dataclasses.replace(m, rotations=m.rotations[::-1].copy(), root_positions=m.root_positions[::-1].copy(),
+                               meta=meta | {"time_reversed": True})
+
+
 class WindowDataset(Dataset):
     """Fixed-length windows of one representation: item i -> dict with "x" (length, D) float32 tensor
     (normalised), "action"/"style"/"subject" strings ('' if none), "action_id"/"style_id" ints into
@@ -263,11 +272,13 @@ class WindowDataset(Dataset):
 
     motions: the clips (resampled to `fps` if given); stats: (mean, std) from the training split,
     None to compute them here (do that for the training split only, then pass train.stats on);
-    mirror: add the left-right mirrored clips (augmentation).
+    mirror: add the left-right mirrored clips; reverse: add the time-reversed clips (both augmentations
+    of MoGlow sec. 5; applied after each other, so both give 4x the clips).
     """
 
     def __init__(self, motions: list[Motion], representation: str, length: int, stride: int | None = None,
-                 fps: float | None = None, mirror: bool = False, stats=None, actions=None, styles=None):
+                 fps: float | None = None, mirror: bool = False, reverse: bool = False, stats=None, actions=None,
+                 styles=None):
         if representation not in REPRESENTATIONS:
             raise ValueError(f"WindowDataset: unknown representation {representation!r}; "
                              f"choose one of {', '.join(REPRESENTATIONS)}")
@@ -275,6 +286,7 @@ class WindowDataset(Dataset):
             raise ValueError(f"WindowDataset: length and stride must be >= 1, got {length}, {stride}")
         clips = [m if fps is None or m.fps == fps else m.resample(fps) for m in motions]
         clips += [m.mirror() for m in clips] if mirror else []
+        clips += [time_reversed(m) for m in clips] if reverse else []
         self.representation, self.length, self.stride = representation, int(length), int(stride or length)
         self.clips = clips
         self.feature_names = feature_names(representation, clips[0].skeleton) if clips else []

@@ -2,19 +2,21 @@
 
 Three representations, one per family of papers (see DESIGN.md):
 
-- ``positions_control`` (Habibie et al. 2017, paper A; MoGlow, paper D):
-  21 joint positions in the character's floor frame (63) + control (3):
-  forward velocity, sideways velocity (m/s), yaw rate (rad/s).  Positions only,
-  so it decodes to joint positions (T, J, 3), not to rotations.
+- ``positions_control`` (Habibie et al. 2017 sec. 4.1, paper A; MoGlow sec. 5,
+  paper D): 21 joint positions in the character's floor frame (63) + control
+  (3): forward velocity, sideways velocity (m/s), yaw rate (rad/s).  Positions
+  only, so it decodes to joint positions (T, J, 3), not to rotations.
+  (MoGlow's control is the per-frame displacement: ours divided by fps.)
 - ``state_features`` (Wang, Chai et al. 2021, paper B, eq. 3): dx, dz, dyaw
   (root displacement and heading change per frame in the previous frame's
   floor frame), root height, root pitch and roll, the 20 non-root joints'
   local rotations as expmaps (60), 2 foot-contact bits (68 for 21 joints).
   Decodes with the global-transform integration of eq. 4.
-- ``quaternion_root`` (Ghorbani et al. 2020, paper C): the 21 local
+- ``quaternion_root`` (Ghorbani et al. 2020 sec. 3.1, paper C): the 21 local
   quaternions (84; the root's with its heading removed) + 6 root features:
   forward velocity, sideways velocity (m/s), root height, yaw rate (rad/s),
-  pitch, roll (90 for 21 joints).
+  pitch, roll (90 for 21 joints).  Differs from the paper: the initial facing
+  direction is +Z (the course's convention), not +X.
 
 Conventions, stated once:
 
@@ -167,7 +169,7 @@ def _assemble(skeleton: Skeleton, fps: float, xz, height, ypr, local_rot) -> Mot
 
 def encode_positions_control(motion: Motion) -> np.ndarray:
     """motion -> (T, 3J + 3): joint positions in the floor frame, then (vel_forward, vel_sideways, yaw_rate)
-    in m/s and rad/s (Habibie et al. 2017 sec. 3; MoGlow sec. 4 control)."""
+    in m/s and rad/s (Habibie et al. 2017 sec. 4.1; MoGlow sec. 5)."""
     ypr, d, dyaw = _root_motion(motion)
     pos = motion.positions()  # (T, J, 3) world
     rel = pos - motion.root_positions[:, None] * np.array([1.0, 0.0, 1.0])  # relative to floor projection
@@ -239,7 +241,7 @@ def _continuous(q: np.ndarray) -> np.ndarray:
 
 def encode_quaternion_root(motion: Motion) -> np.ndarray:
     """motion -> (T, 4J + 6): local quaternions (root: R_x(pitch) R_z(roll), its heading removed), then
-    (vel_forward, vel_sideways, root_height, yaw_rate, pitch, roll) in m/s, m, rad/s, rad (Ghorbani sec. 5.1).
+    (vel_forward, vel_sideways, root_height, yaw_rate, pitch, roll) in m/s, m, rad/s, rad (Ghorbani sec. 3.1).
 
     Quaternion signs are made continuous in time (first frame w >= 0).
     """

@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 import torch
-from test_representations import random_motion
+from test_representations import random_motion, straight_walk
 
 from course_lib import datasets as D
 from course_lib import representations as R
@@ -163,6 +163,11 @@ def test_mirror_and_fps_options():
     f, g = R.encode_positions_control(ds.clips[0]), R.encode_positions_control(ds.clips[2])
     np.testing.assert_allclose(g[:, -3], f[:, -3], atol=1e-9)
     np.testing.assert_allclose(g[:, -1], -f[:, -1], atol=1e-9)
+    rev = D.WindowDataset(ms[:1], "positions_control", length=20, stride=20, reverse=True)
+    assert len(rev.clips) == 2 and rev.clips[1].meta["time_reversed"]
+    np.testing.assert_allclose(rev.clips[1].positions(), rev.clips[0].positions()[::-1], atol=1e-12)
+    back = D.time_reversed(straight_walk(direction_deg=90, heading_deg=90, speed=1.5))
+    np.testing.assert_allclose(R.encode_positions_control(back)[:, -3:], [[-1.5, 0, 0]] * len(back), atol=1e-9)
     with pytest.raises(ValueError, match="no clip has 500 frames"):
         D.WindowDataset(ms, "positions_control", length=500)
     with pytest.raises(ValueError, match="unknown representation"):
