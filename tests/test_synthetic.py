@@ -202,3 +202,20 @@ def test_bad_inputs_raise(subjects):
         generate_action(subjects[0], "jump", duration=0.5)
     with pytest.raises(ValueError, match="drop_rate"):
         add_noise(generate_action(subjects[0], "jump"), drop_rate=1.5)
+
+
+def test_knees_never_flip_pop_or_overflex(steady, random_clips, actions):
+    for m in all_clips(steady, random_clips, actions):
+        P, sk = m.positions(), m.skeleton
+        for side in ("Left", "Right"):
+            hip, knee, ankle, toe = (P[:, sk.index(side + n)] for n in ("UpLeg", "Leg", "Foot", "ToeBase"))
+            u = (ankle - hip) / np.linalg.norm(ankle - hip, axis=-1, keepdims=True)
+            out = (knee - hip) - np.sum((knee - hip) * u, -1, keepdims=True) * u  # knee off the hip-ankle line
+            fwd = (toe - ankle) * np.array([1, 0, 1])
+            bent = np.linalg.norm(out, axis=-1) > 0.05
+            cos = np.sum(out * fwd, -1) / np.linalg.norm(out, axis=-1) / np.linalg.norm(fwd, axis=-1)
+            assert (cos[bent] > 0).all()  # the knee points the way the foot does
+            t1, t2 = knee - hip, ankle - knee
+            flex = np.degrees(np.arccos(np.clip(np.sum(t1 * t2, -1) / np.linalg.norm(t1, axis=-1)
+                                                / np.linalg.norm(t2, axis=-1), -1, 1)))
+            assert 1.0 < flex.min() and flex.max() <= 140.0 + 1e-6  # never locked straight, never over-flexed

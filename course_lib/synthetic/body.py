@@ -24,6 +24,7 @@ from course_lib.skeleton import Skeleton
 from course_lib.synthetic.ik import fk_matrices, limb_rotations, matrices_to_quats, mm, rot, scale_rotation, two_bone_ik
 
 SIDES = ("Left", "Right")
+MAX_KNEE_FLEXION = np.radians(140.0)  # deep squat / sprint heel kick; a swing foot closer than that stops short
 MAX_REACH = 0.995  # fraction of l1 + l2 a leg may extend to: knees stay slightly bent, no popping
 # Heel contact point relative to the ankle, in units of the canonical foot (x the ToeBase scale).
 HEEL = np.array([0.0, -0.08, -0.045])
@@ -141,7 +142,8 @@ def pose_body(skel: Skeleton, tg: BodyTargets) -> np.ndarray:
 def _pose_leg(skel: Skeleton, tg: BodyTargets, side: str, L: np.ndarray) -> None:
     g = leg_geometry(skel, side)
     hip = tg.pelvis_pos + tg.pelvis_rot @ g.hip
-    knee, ankle = two_bone_ik(hip, tg.ankle[side], tg.knee_pole[side], g.l1, g.l2, max_reach=0.9999)
+    knee, ankle = two_bone_ik(hip, tg.ankle[side], tg.knee_pole[side], g.l1, g.l2, max_reach=0.9999,
+                              max_bend=MAX_KNEE_FLEXION)
     thigh, shin = limb_rotations(hip, knee, ankle, tg.knee_pole[side], (0.0, -1.0, 0.0), (0.0, 0.0, 1.0))
     t = np.swapaxes
     L[:, skel.index(side + "UpLeg")] = t(tg.pelvis_rot, -1, -2) @ thigh

@@ -60,17 +60,19 @@ def bone_frame(bone_dir: np.ndarray, pole: np.ndarray, rest_bone: np.ndarray, re
 
 
 def two_bone_ik(root: np.ndarray, target: np.ndarray, pole: np.ndarray, l1: float, l2: float,
-                max_reach: float = 0.9995) -> tuple[np.ndarray, np.ndarray]:
+                max_reach: float = 0.9995, max_bend: float = np.pi) -> tuple[np.ndarray, np.ndarray]:
     """Analytic two-bone IK (law of cosines) in the plane of root, target and pole.
 
     root, target, pole: (T, 3) (pole is a direction the middle joint bends towards)
-    -> mid (T, 3), end (T, 3).  The distance is clamped to [|l1 - l2|, max_reach (l1 + l2)],
-    so a knee never snaps straight (no popping) and never flips (it stays on the pole side).
+    -> mid (T, 3), end (T, 3).  The distance is clamped to [d(max_bend), max_reach (l1 + l2)],
+    d(theta) = sqrt(l1^2 + l2^2 + 2 l1 l2 cos theta) for a middle-joint flexion theta, so a knee
+    never snaps straight (no popping), never over-flexes, and never flips (it stays on the pole side).
     """
     d = target - root
     dist = np.linalg.norm(d, axis=-1)
     u = d / dist[:, None]
-    dist = np.clip(dist, abs(l1 - l2) + 1e-4, max_reach * (l1 + l2))
+    d_min = np.sqrt(max(l1 ** 2 + l2 ** 2 + 2 * l1 * l2 * np.cos(max_bend), 0.0))
+    dist = np.clip(dist, max(d_min, abs(l1 - l2) + 1e-4), max_reach * (l1 + l2))
     # cos(alpha) = (l1^2 + d^2 - l2^2) / (2 l1 d), alpha the angle at the root joint
     cos_a = np.clip((l1 ** 2 + dist ** 2 - l2 ** 2) / (2 * l1 * dist), -1.0, 1.0)
     f = unit(pole - np.sum(pole * u, -1, keepdims=True) * u)

@@ -51,6 +51,7 @@ GAITS = ("idle", "walk", "jog", "run", "sidestep", "backward", "turn")
 PARK = (0.05, 0.55)  # gait phases where both feet are down (double support): idle parks the phase there
 SWING_DELAY = 0.08  # fraction of swing at each end with vertical motion only (no sliding near the floor)
 APPROACH_SLOPE = 2.0  # toe height gain per metre of horizontal travel near lift-off and touch-down
+STANCE_REACH = 0.75  # the root may travel this x leg length past mid-stance before the foot must lift
 SWING_RAMP = 0.25  # fraction of the swing path over which the foot accelerates (and brakes)
 
 
@@ -361,10 +362,24 @@ def plan_feet(ctl: dict, path: np.ndarray, phi: np.ndarray, prm: dict, subject_g
         local = np.stack([sign * width, np.full_like(width, geo.toe_height), np.full_like(width, geo.toe[2])], -1)
         plant = np.stack([x, np.zeros_like(x), z], -1) + apply(rot("y", yaw), local)
         foot_yaw = yaw + sign * np.radians(6.0)  # toe-out
+        lo = _reach_liftoff(t, td, lo, tm, path, STANCE_REACH * (geo.l1 + geo.l2))
         fp = {n: prm[n][fr0] for n in ("heel_off", "clearance")}
         fp.update({n: np.radians(prm[n][fr0]) for n in ("heel_strike", "toe_off")})
         out[side] = foot_track(t, td, lo, plant, foot_yaw, fp, geo, path[:, :2])
     return out
+
+
+def _reach_liftoff(t, td, lo, tm, path, reach: float) -> np.ndarray:
+    """Lift-off times (K,): the phase's, or earlier, once the root has moved `reach` metres from where it
+    was at mid-stance (a sudden speed-up would otherwise leave a planted foot out of reach)."""
+    lo = lo.copy()
+    for k in np.nonzero(np.isfinite(td))[0]:
+        i0 = int(np.searchsorted(t, tm[k]))
+        d = np.linalg.norm(path[i0:, :2] - path[min(i0, len(t) - 1), :2], axis=-1)
+        far = np.nonzero(d > reach)[0]
+        if len(far):
+            lo[k] = min(lo[k], t[i0 + far[0]])
+    return lo
 
 
 def _body_acceleration(path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
