@@ -9,7 +9,8 @@ Pipeline (all numpy, vectorised over time; only the 1-D gait phase is a scalar l
 3. a gait phase phi(t) (cycles) integrates the cadence f(v, gait) / 2; each foot touches down
    when its phase (phi, phi + 1/2) crosses an integer and lifts off `duty` later;
 4. footholds: a foot plants where the root will be at mid-stance plus a lateral offset and
-   stays there for the whole stance (foot skate ~ 0); heel strike rolls about the heel,
+   stays there for the whole stance (foot skate ~ 0), lifting early only if the root outruns it
+   (sudden speed-ups); heel strike rolls about the heel,
    heel-off about the toe joint (ball), so the toe joint never slides; swing is a
    minimum-jerk path with a clearance arc;
 5. the body (body.py): pelvis bob (2x step frequency), sway and list (1x), twist with
