@@ -71,7 +71,8 @@ def frechet_distance(mu1: np.ndarray, sigma1: np.ndarray, mu2: np.ndarray, sigma
     s1_half = (v1 * np.sqrt(np.clip(w1, 0, None))) @ v1.T
     lam = np.linalg.eigvalsh(s1_half @ sigma2 @ s1_half)
     tr_sqrt = np.sqrt(np.clip(lam, 0, None)).sum()
-    return float(((mu1 - mu2) ** 2).sum() + np.trace(sigma1) + np.trace(sigma2) - 2 * tr_sqrt)
+    # clipped at 0: for (near) identical sets round-off can give a tiny negative value
+    return max(0.0, float(((mu1 - mu2) ** 2).sum() + np.trace(sigma1) + np.trace(sigma2) - 2 * tr_sqrt))
 
 
 def _features_2d(x, classifier, name: str) -> np.ndarray:
