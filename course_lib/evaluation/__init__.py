@@ -6,24 +6,13 @@
 - `distribution`: FID, Inception Score (Ghorbani eq. 27-29), two-sample test;
 - `tables`: our numbers beside the paper's as Markdown / HTML / dict.
 
-Importing this package loads nothing from disk; the classifiers load on first use.
+Importing this package loads nothing from disk; the classifiers load on first use.  The
+classifier and distribution names are imported lazily (PEP 562), so that
+``python -m course_lib.evaluation.classifiers`` runs its module only once.
 """
 
-from course_lib.evaluation.classifiers import (
-    ClassifierConfig,
-    MotionClassifier,
-    accuracy,
-    load_classifier,
-    motions_to_batch,
-)
-from course_lib.evaluation.distribution import (
-    classifier_features,
-    fid,
-    frechet_distance,
-    inception_score,
-    summary_features,
-    two_sample_accuracy,
-)
+import importlib
+
 from course_lib.evaluation.metrics import (
     apd,
     bone_length_violation,
@@ -40,6 +29,24 @@ from course_lib.evaluation.metrics import (
     speed_error,
 )
 from course_lib.evaluation.tables import ResultsTable, table
+
+_LAZY = {
+    "classifiers": ("ClassifierConfig", "MotionClassifier", "accuracy", "load_classifier", "motions_to_batch"),
+    "distribution": ("classifier_features", "fid", "frechet_distance", "inception_score", "summary_features",
+                     "two_sample_accuracy"),
+}
+
+
+def __getattr__(name: str):
+    for module, names in _LAZY.items():
+        if name in names:
+            return getattr(importlib.import_module(f"course_lib.evaluation.{module}"), name)
+    raise AttributeError(f"module 'course_lib.evaluation' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation",
