@@ -173,12 +173,13 @@ def pose_error(pred, target, frames=None, skeleton: Skeleton | None = None) -> d
 
 def foot_skate(motions, fps: float | None = None, skeleton: Skeleton | None = None,
                joints: Sequence[str] = ("LeftToeBase", "RightToeBase"),
-               height: float = CONTACT_HEIGHT["ToeBase"]) -> float:
+               height: float = CONTACT_HEIGHT["ToeBase"], floor: float = 0.0) -> float:
     """Mean horizontal speed of feet in contact with the floor, m/s (0 for a perfect motion).
 
     motions: list of Motions or (N, T, J, 3) positions (then give fps).  For each
     foot joint in ``joints`` and each frame pair (t, t+1) where the joint is below
-    ``height`` (default course_lib.motion.CONTACT_HEIGHT['ToeBase']) on both frames,
+    ``height`` above ``floor`` (default course_lib.motion.CONTACT_HEIGHT['ToeBase'] above
+    y = 0; real mocap may need its floor level passed) on both frames,
     speed = ||(x, z)_{t+1} - (x, z)_t|| * fps.  Returns the mean over all such pairs
     (0.0 if no foot ever touches the floor).  Unlike `Motion.contacts` there is no
     speed gate: a sliding foot must count.
@@ -189,7 +190,7 @@ def foot_skate(motions, fps: float | None = None, skeleton: Skeleton | None = No
     speeds = []
     for c in clips:
         f = c[:, idx]  # (T, F, 3)
-        low = f[..., 1] < height
+        low = f[..., 1] - floor < height
         both = low[1:] & low[:-1]  # (T-1, F)
         v = np.linalg.norm(np.diff(f[..., [0, 2]], axis=0), axis=-1) * fps  # (T-1, F)
         speeds.append(v[both])
