@@ -97,6 +97,9 @@ def test_foot_skate_known_speeds():
     # the threshold is motion.CONTACT_HEIGHT: toes just above it do not count
     lifted = rest_clip(velocity=(1.0, 0, 0), height=0.96 + CONTACT_HEIGHT["ToeBase"])
     assert foot_skate(lifted, fps=FPS) == 0.0
+    on_a_step = rest_clip(velocity=(0.1, 0, 0), height=0.96 + 0.2)  # toes 0.225 m up: a floor at y = 0.2
+    assert foot_skate(on_a_step, fps=FPS) == 0.0
+    np.testing.assert_allclose(foot_skate(on_a_step, fps=FPS, floor=0.2), 0.10, rtol=1e-9)
 
 
 def test_ground_penetration_and_jitter():
