@@ -118,7 +118,8 @@ class Motion:
     def __repr__(self) -> str:
         labels = ", ".join(f"{k}={v!r}" for k, v in
                            (("action", self.action), ("style", self.style), ("subject", self.subject)) if v)
-        return f"Motion({len(self)} frames @ {self.fps:g} fps, {self.skeleton.num_joints} joints{', ' + labels if labels else ''})"
+        tail = f", {labels}" if labels else ""
+        return f"Motion({len(self)} frames @ {self.fps:g} fps, {self.skeleton.num_joints} joints{tail})"
 
 
 def foot_contacts(positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
