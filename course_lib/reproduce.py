@@ -124,7 +124,7 @@ def lesson02_models() -> dict[str, tuple]:
     from course_lib.models.vae_lstm import VaeLstm, VaeLstmConfig
 
     return {
-        "vae_lstm": (VaeLstm, VaeLstmConfig.cpu(), TrainSpec("vae_lstm", "VAE-LSTM", 600, 16, 1e-3)),
+        "vae_lstm": (VaeLstm, VaeLstmConfig.cpu(), TrainSpec("vae_lstm", "VAE-LSTM", 1000, 16, 1e-3)),
         "erd": (Erd, ErdConfig.cpu(), TrainSpec("erd", "ERD", 500, 16, 1e-3)),
         "lstm3lr": (Lstm3lr, Lstm3lrConfig.cpu(), TrainSpec("lstm3lr", "LSTM-3LR", 500, 16, 1e-3)),
         "crbm_cd1": (CRbm, CRbmConfig.cpu(cd_k=1), TrainSpec("crbm_cd1", "cRBM, CD-1", 800, 16, 1e-3)),
@@ -190,6 +190,8 @@ def lesson02_predictions(models: dict, x: torch.Tensor, seed: int = 0) -> dict[s
             t1[label] = t2[label] = with_control(model.predict(x[:, :4], control), control)
             prior = with_control(model.generate(control, generator=gen), control)
             t1[label + " (prior sample)"] = t2[label + " (prior sample)"] = prior
+            per_step = with_control(model.generate(control, generator=gen, per_step=True), control)
+            t1[label + " (prior, every step)"] = t2[label + " (prior, every step)"] = per_step
         else:
             kw = {"generator": gen} if name.startswith("crbm") else {}
             t1[label] = model.predict(x[:, :60], T - 60, **kw)
@@ -216,24 +218,27 @@ def lesson02_tables(models: dict, test_ds: WindowDataset, seed: int = 0, frames=
 
 
 def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_samples: int = 5, seed: int = 0) -> dict:
-    """Prior samples under one control: APD (m) of S samples per control, and the path error (m): the
+    """Prior samples under one control, by Algorithm 1 (z_1 only) and with z_t drawn every step:
+    APD (m) of S samples per control, and the path error (m): the
     mean distance of the root path integrated from the *model's own* control outputs to the
     ground-truth path (with the given control the path would match by construction)."""
     from course_lib.evaluation import apd, path_distance
 
     x, starts = test_batch(test_ds)
     x, starts = x[:n_controls], starts[:n_controls]
-    gen = torch.Generator().manual_seed(seed)
-    samples, path_err = [], []
-    for i in range(len(x)):
-        ctrl = x[i:i + 1, :, -3:].expand(n_samples, -1, -1)
-        pred = model.generate(ctrl, generator=gen)  # (S, T, 66)
-        own = to_world(pred, test_ds, [starts[i]] * n_samples)  # root from the model's own control
-        samples.append(to_world(with_control(pred, ctrl), test_ds, [starts[i]] * n_samples))
-        gt_path = to_world(x[i:i + 1], test_ds, starts[i:i + 1])[0, :, 0]
-        path_err.append(path_distance(own, gt_path))
-    return {"apd_m": apd(np.stack(samples)), "path_error_m": float(np.mean(path_err)),
-            "controls": len(x), "samples_per_control": n_samples}
+    out = {"controls": len(x), "samples_per_control": n_samples}
+    for key, per_step in (("algorithm1", False), ("per_step_prior", True)):
+        gen = torch.Generator().manual_seed(seed)
+        samples, path_err = [], []
+        for i in range(len(x)):
+            ctrl = x[i:i + 1, :, -3:].expand(n_samples, -1, -1)
+            pred = model.generate(ctrl, generator=gen, per_step=per_step)  # (S, T, 66)
+            own = to_world(pred, test_ds, [starts[i]] * n_samples)  # root from the model's own control
+            samples.append(to_world(with_control(pred, ctrl), test_ds, [starts[i]] * n_samples))
+            gt_path = to_world(x[i:i + 1], test_ds, starts[i:i + 1])[0, :, 0]
+            path_err.append(path_distance(own, gt_path))
+        out[key] = {"apd_m": apd(np.stack(samples)), "path_error_m": float(np.mean(path_err))}
+    return out
 
 
 def _rounded(d, digits: int = 6):
@@ -256,8 +261,9 @@ def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = 
     return _rounded(out)
 
 
-def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True) -> dict:
-    """Generate the data, train every lesson-02 model, save checkpoints (+ manifest) -> eval results."""
+def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True, only=None) -> dict:
+    """Generate the data, train every lesson-02 model (or those named in ``only``), save checkpoints
+    (+ manifest) -> eval results."""
     from course_lib.training import save_checkpoint
 
     spec = spec or DataSpec()
@@ -266,6 +272,8 @@ def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool =
     timings = {"data_seconds": round(time.perf_counter() - t0, 1)}
     command = "python -m course_lib.reproduce vae_lstm"
     for name, (_, config, _spec) in lesson02_models().items():
+        if only and name not in only:
+            continue
         model, hist = train_one(name, train_ds, seed, progress=progress)
         timings[name] = round(hist.seconds, 1)
         metrics = {"train_seconds": round(hist.seconds, 1), "steps": hist.num_steps,
@@ -311,10 +319,11 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest on a busy CPU)")
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
+    parser.add_argument("--only", nargs="*", default=None, help="train only these models (others: checkpoints)")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     train_fn, eval_fn = EXPERIMENTS[args.experiment]
-    result = (eval_fn if args.eval_only else train_fn)(seed=args.seed)
+    result = eval_fn(seed=args.seed) if args.eval_only else train_fn(seed=args.seed, only=args.only)
     text = json.dumps(result, indent=1)
     print(text)
     if args.out:

@@ -169,3 +169,15 @@ def test_evaluation_decoding_round_trip():
     shifted = with_control(x + 1.0, x[..., -3:])
     torch.testing.assert_close(shifted[..., -3:], x[..., -3:])
     assert prediction_error(to_world(shifted, ds, starts), world, [70])[70] > 1e-3
+
+
+def test_per_step_prior_uses_training_branch():
+    """generate(per_step=True) == decoding prior draws z_t through the training branch of eq. (9)."""
+    torch.manual_seed(8)
+    m = VaeLstm(tiny()).eval()
+    control = torch.randn(2, 32, 3)
+    out = m.generate(control, generator=torch.Generator().manual_seed(0), per_step=True)
+    z = torch.randn(2, 8, 8, generator=torch.Generator().manual_seed(0))
+    torch.testing.assert_close(out, m.decode(m.run_decoder(m.encode_control(control), z)))
+    with pytest.raises(ValueError, match="per_step"):
+        m.generate(control, z1=torch.zeros(2, 8), per_step=True)

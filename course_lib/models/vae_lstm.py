@@ -235,10 +235,18 @@ class VaeLstm(nn.Module):
 
     @torch.no_grad()
     def generate(self, control: torch.Tensor, z1: torch.Tensor | None = None,
-                 generator: torch.Generator | None = None) -> torch.Tensor:
+                 generator: torch.Generator | None = None, per_step: bool = False) -> torch.Tensor:
         """Algorithm 1.  control: (N, T, 3) normalised C_{1:T}; z1: (N, U) or None (z_1 ~ N(0, I))
-        -> X_hat: (N, T, 66).  Only z_1 is used; later cell states come from W_c c(t-1)."""
+        -> X_hat: (N, T, 66).  Only z_1 is used; later cell states come from W_c c(t-1).
+
+        per_step: instead draw z_t ~ N(0, I) for every pooled step and run the training branch of
+        eq. (9) (the alternative the paper mentions in sec. 3.3); z1 must then be None."""
         h_c = self.encode_control(control)  # h^c_{1:T} = CNN^enc(C_{1:T})
+        if per_step:
+            if z1 is not None:
+                raise ValueError("generate: per_step=True draws every z_t from the prior; pass z1=None")
+            z = torch.randn(*h_c.shape[:2], self.config.units, generator=generator)  # z_t ~ N(0, I)
+            return self.decode(self.run_decoder(h_c, z))
         if z1 is None:
             z1 = torch.randn(control.shape[0], self.config.units, generator=generator)  # z_1 ~ N(0, I)
         if z1.shape != (control.shape[0], self.config.units):
