@@ -12,7 +12,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 MAX_NOTEBOOK_BYTES = 5 * 1024 * 1024
-NOTEBOOK_NAME = re.compile(r"^\d\d_[a-z0-9_]+\.ipynb$")  # the Makefile runs notebooks/[0-9]*.ipynb in name order
+NOTEBOOK_NAME = re.compile(r"^\d\d[a-z]?_[a-z0-9_]+\.ipynb$")  # 00_, 00b_, 01_: run in name order
 MODE_WORDS = ("COURSE_MODE", "course_mode", "by_mode")
 
 
@@ -25,7 +25,7 @@ def notebook_problems(path: Path) -> list[str]:
     """Why `path` is not a committed, executed, small, mode-aware lesson notebook (empty list: it is)."""
     problems = []
     if not NOTEBOOK_NAME.match(path.name):
-        problems.append(f"name {path.name!r} is not NN_lower_case.ipynb")
+        problems.append(f"name {path.name!r} is not NN_lower_case.ipynb (or NNb_...)")
     size = path.stat().st_size
     if size >= MAX_NOTEBOOK_BYTES:
         problems.append(f"{size / 2**20:.1f} MB, the limit is {MAX_NOTEBOOK_BYTES / 2**20:.0f} MB")
@@ -91,7 +91,7 @@ def test_every_notebook_is_an_executed_small_mode_aware_lesson():
 
 def test_every_notebook_is_in_the_readme_lesson_list():
     readme = (REPO / "README.md").read_text(encoding="utf-8")
-    missing = [nb.name for nb in lesson_notebooks() if f"| {nb.name[:2]} |" not in readme]
+    missing = [nb.name for nb in lesson_notebooks() if f"| {nb.name.split('_')[0]} |" not in readme]
     assert missing == [], "give these lessons a row `| NN | ...` in README.md's lesson table"
 
 
