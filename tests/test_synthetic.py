@@ -219,3 +219,13 @@ def test_knees_never_flip_pop_or_overflex(steady, random_clips, actions):
             flex = np.degrees(np.arccos(np.clip(np.sum(t1 * t2, -1) / np.linalg.norm(t1, axis=-1)
                                                 / np.linalg.norm(t2, axis=-1), -1, 1)))
             assert 1.0 < flex.min() and flex.max() <= 140.0 + 1e-6  # never locked straight, never over-flexed
+
+
+def test_local_rotations_are_continuous(steady, random_clips, actions):
+    """No joint's local rotation jumps between frames (a 180-degree frame flip of the shin once did
+    while positions stayed right, corrupting every rotation representation)."""
+    for m in all_clips(steady, random_clips, actions):
+        q = m.rotations
+        dot = np.abs(np.sum(q[1:] * q[:-1], -1)).clip(0.0, 1.0)
+        step = np.degrees(2 * np.arccos(dot)) * (120.0 / m.fps)  # degrees per 1/120 s
+        assert step.max() < 30.0, (m.action, m.subject, step.max(), np.unravel_index(step.argmax(), step.shape))

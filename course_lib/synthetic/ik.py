@@ -85,10 +85,17 @@ def limb_rotations(root, mid, end, pole, rest_bone, rest_pole) -> tuple[np.ndarr
 
     root, mid, end, pole: (T, 3); rest_bone: (3,) rest direction of both bones, rest_pole: (3,)
     the side the middle joint bends towards at rest -> (upper (T, 3, 3), lower (T, 3, 3)).
-    Both bones share the hinge axis, so the middle joint is a pure hinge.
+    Both bones share one hinge axis n = u x f, taken from the IK plane (u: root -> end, f: the
+    pole projected off u, as in `two_bone_ik`), so the middle joint is a pure hinge.  Projecting
+    the pole off each bone instead flips the frame by 180 degrees when a bone nears the pole
+    direction (a high knee in a run).
     """
     rb, rp = np.asarray(rest_bone, np.float64), np.asarray(rest_pole, np.float64)
-    return bone_frame(mid - root, pole, rb, rp), bone_frame(end - mid, pole, rb, rp)
+    u = unit(end - root)
+    n = np.cross(u, unit(pole - np.sum(pole * u, -1, keepdims=True) * u))  # (T, 3) hinge axis
+    upper, lower = unit(mid - root), unit(end - mid)
+    # each bone's bend side is n x b: for the upper bone it is the pole side of the IK plane
+    return bone_frame(upper, np.cross(n, upper), rb, rp), bone_frame(lower, np.cross(n, lower), rb, rp)
 
 
 def fk_matrices(local: np.ndarray, root: np.ndarray, offsets: np.ndarray, parents) -> tuple[np.ndarray, np.ndarray]:
