@@ -249,11 +249,12 @@ def _rounded(d, digits: int = 6):
     return round(d, digits) if isinstance(d, float) else d
 
 
-def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True) -> dict:
+def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True,
+                  checkpoints: Path = CHECKPOINTS) -> dict:
     """Tables 1-2, Figure 4 curves and prior diversity from the shipped checkpoints -> JSON-able dict."""
     spec = spec or DataSpec()
     _, test_ds = datasets(spec, load_clips(spec, progress=progress))
-    models = {name: load_model(name) for name in lesson02_models()}
+    models = {name: load_model(name, checkpoints) for name in lesson02_models()}
     t0 = time.perf_counter()
     out = lesson02_tables(models, test_ds, seed)
     out["prior_diversity"] = prior_diversity(models["vae_lstm"], test_ds, seed=seed)
@@ -261,7 +262,8 @@ def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = 
     return _rounded(out)
 
 
-def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True, only=None) -> dict:
+def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True, only=None,
+                   checkpoints: Path = CHECKPOINTS) -> dict:
     """Generate the data, train every lesson-02 model (or those named in ``only``), save checkpoints
     (+ manifest) -> eval results."""
     from course_lib.training import save_checkpoint
@@ -279,13 +281,13 @@ def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool =
         metrics = {"train_seconds": round(hist.seconds, 1), "steps": hist.num_steps,
                    "final_loss": round(hist.final("loss", 20), 6), "train_clips": len(train_ds),
                    "test_clips": len(test_ds), "data_seed": spec.seed, "train_seed": seed}
-        save_checkpoint(model, config, CHECKPOINTS / f"{name}.pt", command=command, metrics=metrics, overwrite=True)
+        save_checkpoint(model, config, checkpoints / f"{name}.pt", command=command, metrics=metrics, overwrite=True)
         print(f"{name}: {hist}", file=sys.stderr)
-    train_ds.save_stats(CHECKPOINTS / "vae_lstm_stats.npz")
-    out = eval_vae_lstm(spec, seed, progress)
+    train_ds.save_stats(checkpoints / "vae_lstm_stats.npz")
+    out = eval_vae_lstm(spec, seed, progress, checkpoints)
     out["train_seconds"] = timings
     out["total_seconds"] = round(time.perf_counter() - t0, 1)
-    record_results(out)
+    record_results(out, checkpoints)
     return out
 
 
@@ -320,10 +322,12 @@ def main(argv=None) -> int:
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest on a busy CPU)")
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     parser.add_argument("--only", nargs="*", default=None, help="train only these models (others: checkpoints)")
+    parser.add_argument("--checkpoints", type=Path, default=CHECKPOINTS, help="checkpoint folder (with MANIFEST.json)")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     train_fn, eval_fn = EXPERIMENTS[args.experiment]
-    result = eval_fn(seed=args.seed) if args.eval_only else train_fn(seed=args.seed, only=args.only)
+    kw = {"seed": args.seed, "checkpoints": args.checkpoints}
+    result = eval_fn(**kw) if args.eval_only else train_fn(**kw, only=args.only)
     text = json.dumps(result, indent=1)
     print(text)
     if args.out:
