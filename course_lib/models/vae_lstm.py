@@ -61,7 +61,7 @@ class VaeLstmConfig:
     input_dropout: float = 0.1  # dropout on joint positions and controls (rate not given in the paper)
     obs_std: float = 0.2  # std of the Gaussian likelihood p(X|z), normalised units (not given in the paper)
     l1: float = 0.1  # l1 weight regularisation (sec. 4.2)
-    lr: float = 5e-4  # Adam learning rate (sec. 4.2)
+    lr: float = 5e-4  # Adam learning rate (sec. 4.2); our short CPU runs use 1e-3 (reproduce.lesson02_models)
     clip_length: int = 240  # frames per training clip (4 s at 60 fps)
     init_frames: int = 4  # frames that determine the first pooled step (pool ** 2)
 
