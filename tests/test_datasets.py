@@ -177,8 +177,12 @@ def test_mirror_and_fps_options():
 def test_load_dataset_prefers_the_file(tmp_path):
     ms = clips(2)
     D.save_motions(ms, tmp_path / "actions.npz")
-    back = D.load_dataset("actions", data_dir=tmp_path)
+    back = D.load_dataset("actions", mode="class", data_dir=tmp_path)
     assert [len(m) for m in back] == [len(m) for m in ms]
+    half = D.load_dataset("actions", mode="class", data_dir=tmp_path, fps=ms[0].fps / 2)
+    assert half[0].fps == ms[0].fps / 2 and len(half[0]) == (len(ms[0]) + 1) // 2
+    # CI mode never reads data/: its numbers must not depend on what `make data` left there
+    assert len(D.load_dataset("actions", mode="ci", data_dir=tmp_path)) == 4 * len(D.ACTIONS) * len(D.STYLES)
     with pytest.raises(ValueError, match="unknown dataset"):
         D.load_dataset("mocap", data_dir=tmp_path)
 
