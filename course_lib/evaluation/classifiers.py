@@ -22,8 +22,8 @@ Differs from the paper: trained on synthetic clips (``course_lib.synthetic``)
 instead of AMASS; 2-s windows (60 frames at 30 fps) instead of 4 s; 64 channels,
 kernel 5 (Table 1 gives no sizes); Adam lr 5e-3 as the paper, but a fixed number
 of steps instead of 30 epochs (CPU budget).  Style is the synthetic analogue of
-the paper's gender attribute; the style classifier is trained and tested on walk,
-jog and lift only, because the synthetic jump does not depend on the style.
+the paper's gender attribute (the generator's styles differ in arm swing, hip sway,
+cadence, trunk lean and, for lift, technique).
 """
 
 from __future__ import annotations
@@ -46,9 +46,7 @@ __all__ = ["ClassifierConfig", "MotionClassifier", "accuracy", "checkpoint_path"
 
 ACTIONS = ("walk", "jog", "jump", "lift")
 STYLES = ("A", "B")
-# The synthetic jump does not depend on the style (course_lib.synthetic.actions._jump reads only the
-# skeleton), so its style label is not learnable: the style classifier uses the other actions.
-STYLED_ACTIONS = ("walk", "jog", "lift")
+STYLED_ACTIONS = ACTIONS  # the actions the style classifier is trained and tested on
 CHECKPOINT_DIR = Path(__file__).resolve().parents[2] / "checkpoints"
 
 

@@ -2,7 +2,8 @@
 
 - walk / jog: steady locomotion (locomotion.py) along a gentle curve;
 - jump: stand, crouch, push-off (heels rise about the balls of the feet), ballistic flight,
-  landing on the balls of the feet with knee flexion to absorb, stand up.  In flight the
+  landing on the balls of the feet with knee flexion to absorb, stand up (style scales the arm
+  swing and sets the trunk lean, as in walking).  In flight the
   root follows y(t) = y0 + v0 t - g t^2 / 2 with g = 9.81 m/s^2; take-off and touch-down
   happen in the same leg configuration, so flight time t_f = 2 v0 / g and apex height
   h = v0^2 / (2 g) = g t_f^2 / 8 hold exactly;
@@ -131,9 +132,10 @@ def _jump(sub: Subject, rng: np.random.Generator, duration: float | None) -> Mot
     lean_to = 0.12
     p_to = np.radians(45.0)                            # heels up at take-off and touch-down
     keys = [0.0, t_c0, t_p0, t_to, t_ld, t_a1, t_r1, t_r1 + 1.0]
-    lean = keyframes(t, keys, [0.04, 0.04, 0.5, lean_to, lean_to, 0.4, 0.04, 0.04])
+    # style: the arm swing scales with the subject's (A swings wide, B close), the trunk carries its lean
+    lean = keyframes(t, keys, [0.04, 0.04, 0.5, lean_to, lean_to, 0.4, 0.04, 0.04]) + np.radians(sub.torso_lean)
     spine = keyframes(t, keys, [0.03, 0.03, 0.15, 0.0, 0.03, 0.15, 0.03, 0.03])
-    swing = keyframes(t, keys, [0.05, 0.05, -0.9, 1.7, 1.0, 0.4, 0.05, 0.05])
+    swing = sub.arm_swing * keyframes(t, keys, [0.05, 0.05, -0.9, 1.7, 1.0, 0.4, 0.05, 0.05])
     elbow = keyframes(t, keys, [0.2, 0.2, 0.5, 0.25, 0.4, 0.5, 0.2, 0.2])
     prot, chest, head, arms = _upper_body(t, lean, spine, swing, elbow, np.full(len(t), 0.05))
     # feet: standing toe joints, the take-off ankle, its mirror image (in z) at touch-down
