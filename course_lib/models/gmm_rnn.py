@@ -1,0 +1,227 @@
+"""GMM-RNN: the contact-aware generative RNN of Wang, Chai et al. 2021 (IEEE TVCG 27(1)), sec. 4.1 and 4.3.
+
+Taught in notebooks/03_gmm_rnn_refiner.ipynb.
+
+A motion is a sequence of ``state_features`` x_t (representations.py, eq. 3: dx, dz, dyaw in the
+previous frame's floor frame, root height, pitch, roll, 20 x 3 expmap joint angles, 2 contact bits;
+68 values, normalised by the dataset's mean/std).  The network of Fig. 3 predicts the next frame's
+distribution:
+
+    h_t          = LSTM2(LSTM1(relu(FC2(relu(FC1(x_t))))))         Fig. 3, eq. (5)
+    w, mu, sigma = transform(FC_out(relu(FC3(h_t))))               eq. (7): softmax weights, exp std
+    p(x_{t+1})   = sum_i w_i N(x_{t+1} | mu_i, diag(sigma_i^2))     eq. (6), M = 5
+    E            = -log p(x_{t+1} | x_t, h_t, C_t)                  eq. (8), computed with logsumexp
+
+Training (sec. 4.1.3): teacher forcing on 50-frame windows at 30 fps, i.i.d. Gaussian input noise
+(sd 0.05), RMSProp at lr 1e-3 x 0.95 per epoch, batch 20, every gradient entry clipped to [-5, 5].
+Generation (sec. 4.1.4): run the two initial frames through the network, then sample the mixture
+each step and feed the sample back; `sample_step` carries the LSTM state, so generation can go on
+for as long as wanted.  Decode with ``representations.decode_state_features`` (eq. 4).
+
+Differs from the paper:
+- the standard deviations are floored: sigma = exp(max(sigma_hat, log(min_std))), min_std = 0.01
+  (normalised units).  The contact bits take two values only, so without a floor the NLL of eq. (8)
+  is unbounded below (a component collapses on each value).
+- the activations of FC1-FC3 are not given in the paper; we use ReLU.  FC3 is followed by a linear
+  read-out to the M + 2 M D mixture parameters (Fig. 3's "Output(425)" = 5 + 2 * 5 * 42).
+- "every dimension of the derivative is clipped in range [-5, 5]": we clip every parameter's
+  gradient by value, with a hook registered on each parameter (``grad_clip_value``), so the
+  course's ``fit`` (which only clips by norm) can be used with ``grad_clip=None``.
+- contact bits of a sample are thresholded at 0.5 (in raw units) before being fed back, so the
+  generated contacts are binary as in the data (``contact_mode="clamp"`` clamps to [0, 1] instead,
+  ``"none"`` keeps the raw sample).
+- ``GmmRnnConfig.cpu()`` shrinks every width 500 -> 128 so that a model trains in minutes on a 2-core
+  CPU; the paper pre-trains on CMU and fine-tunes (sec. 4.1.3), we train once on the course data.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+__all__ = ["GmmRnn", "GmmRnnConfig", "mixture_log_prob"]
+
+LOG_2PI = math.log(2 * math.pi)
+CONTACT_MODES = ("threshold", "clamp", "none")
+
+
+@dataclass
+class GmmRnnConfig:
+    """GMM-RNN hyper-parameters; the defaults are the paper's (Fig. 3, sec. 4.1.2-4.1.3)."""
+
+    dim: int = 68  # state features of eq. (3) + 2 contact bits (sec. 4.3), 21 joints
+    fc_width: int = 500  # FC1, FC2 (Fig. 3)
+    lstm_width: int = 500  # LSTM1, LSTM2 (Fig. 3)
+    out_width: int = 500  # FC3 (Fig. 3)
+    mixtures: int = 5  # M (sec. 4.1.2)
+    min_std: float = 0.01  # floor on sigma, normalised units (see "differs")
+    noise_std: float = 0.05  # Gaussian input noise during training (sec. 4.1.3)
+    grad_clip_value: float | None = 5.0  # every gradient entry clipped to [-5, 5] (sec. 4.1.2)
+    lr: float = 1e-3  # RMSProp learning rate (sec. 4.1.3)
+    lr_decay: float = 0.95  # multiplied after every epoch (sec. 4.1.3)
+    window: int = 50  # frames per training window (sec. 4.1.3)
+    fps: float = 30.0  # training data downsampled to 30 fps (sec. 4.1.3)
+    batch_size: int = 20  # sec. 4.1.3
+    contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits (last two of state_features)
+
+    @classmethod
+    def cpu(cls, **overrides) -> GmmRnnConfig:
+        """The CPU preset: fc_width, lstm_width, out_width 500 -> 128 (everything else as the paper)."""
+        return cls(**{"fc_width": 128, "lstm_width": 128, "out_width": 128, **overrides})
+
+    def lr_factor(self, epoch: int) -> float:
+        """The paper's schedule for ``fit(lr_schedule=...)``: lr = 1e-3 x 0.95^epoch."""
+        return self.lr_decay ** epoch
+
+    def __post_init__(self):
+        if min(self.dim, self.fc_width, self.lstm_width, self.out_width, self.mixtures, self.window) < 1:
+            raise ValueError(f"GmmRnnConfig: sizes must be positive, got {self}")
+        if self.min_std <= 0 or self.noise_std < 0:
+            raise ValueError(f"GmmRnnConfig: need min_std > 0 and noise_std >= 0, got {self}")
+        if self.grad_clip_value is not None and self.grad_clip_value <= 0:
+            raise ValueError(f"GmmRnnConfig: grad_clip_value must be > 0 or None, got {self.grad_clip_value}")
+        self.contact_dims = tuple(int(c) for c in self.contact_dims)
+        if any(not 0 <= c < self.dim for c in self.contact_dims):
+            raise ValueError(f"GmmRnnConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
+
+
+def mixture_log_prob(x: torch.Tensor, logits: torch.Tensor, mu: torch.Tensor, log_sigma: torch.Tensor) -> torch.Tensor:
+    """log p(x) of a diagonal Gaussian mixture, eq. (6)/(8), in log space.
+
+    x: (..., D), logits: (..., M) w_hat, mu and log_sigma: (..., M, D) -> (...).
+    """
+    z = (x.unsqueeze(-2) - mu) * torch.exp(-log_sigma)  # (..., M, D)
+    # log N(x | mu_i, sigma_i) = sum_j -0.5 z_j^2 - log sigma_ij - 0.5 log 2 pi
+    log_n = (-0.5 * z ** 2 - log_sigma - 0.5 * LOG_2PI).sum(-1)  # (..., M)
+    # log w_i = w_hat_i - logsumexp(w_hat): the softmax of eq. (7)
+    log_w = torch.log_softmax(logits, dim=-1)
+    return torch.logsumexp(log_w + log_n, dim=-1)  # log sum_i w_i N(x | mu_i, sigma_i)
+
+
+class GmmRnn(nn.Module):
+    """Fig. 3: FC1-FC2-LSTM1-LSTM2-FC3 + mixture read-out.  Features are normalised (N, T, dim)."""
+
+    def __init__(self, config: GmmRnnConfig | None = None):
+        super().__init__()
+        self.config = c = config or GmmRnnConfig()
+        self.fc1, self.fc2 = nn.Linear(c.dim, c.fc_width), nn.Linear(c.fc_width, c.fc_width)
+        self.lstm = nn.LSTM(c.fc_width, c.lstm_width, num_layers=2, batch_first=True)  # LSTM1, LSTM2
+        self.fc3 = nn.Linear(c.lstm_width, c.out_width)
+        self.out = nn.Linear(c.out_width, c.mixtures * (1 + 2 * c.dim))  # w_hat, mu_hat, sigma_hat
+        if c.grad_clip_value is not None:
+            for p in self.parameters():
+                p.register_hook(_ClampGrad(c.grad_clip_value))
+
+    def _check(self, x: torch.Tensor, name: str, min_frames: int = 1) -> None:
+        D = self.config.dim
+        if not torch.is_tensor(x) or x.ndim != 3 or x.shape[-1] != D or x.shape[1] < min_frames:
+            shape = tuple(x.shape) if torch.is_tensor(x) else type(x).__name__
+            raise ValueError(f"{name} must be (N, T >= {min_frames}, {D}), got {shape}")
+        if not torch.isfinite(x).all():
+            raise ValueError(f"{name} contains NaN or inf")
+
+    def forward(self, x: torch.Tensor, state=None) -> tuple[dict, tuple]:
+        """x: (N, T, D) -> ({"logits": (N, T, M), "mu", "log_sigma": (N, T, M, D)}, LSTM state (h, C)).
+
+        Row t parameterises p(x_{t+1} | x_{<=t}); state carries (h_t, C_t) of both LSTMs, eq. (5).
+        """
+        self._check(x, "x")
+        N, T, _ = x.shape
+        M, D = self.config.mixtures, self.config.dim
+        a = F.relu(self.fc2(F.relu(self.fc1(x))))  # (N, T, fc_width)
+        h, state = self.lstm(a, state)  # (N, T, lstm_width)
+        raw = self.out(F.relu(self.fc3(h)))  # (N, T, M (1 + 2 D))
+        logits = raw[..., :M]  # w_hat
+        mu = raw[..., M: M + M * D].reshape(N, T, M, D)  # mu = mu_hat                     -- eq. (7)
+        # sigma = exp(sigma_hat), floored at min_std (see "differs")                         -- eq. (7)
+        log_sigma = raw[..., M + M * D:].reshape(N, T, M, D).clamp(min=math.log(self.config.min_std))
+        return {"logits": logits, "mu": mu, "log_sigma": log_sigma}, state
+
+    def loss(self, batch, noise: torch.Tensor | None = None) -> dict:
+        """batch: (N, T, D) or {"x": ...} normalised windows -> {"loss", "nll"}: eq. (8) per frame.
+
+        Teacher forcing: inputs x_{1..T-1} plus N(0, noise_std^2) noise (training mode only, sec. 4.1.3;
+        ``noise`` (N, T-1, D) overrides the draw), targets x_{2..T}.
+        """
+        x = batch["x"] if isinstance(batch, dict) else batch
+        self._check(x, "batch", min_frames=2)
+        inputs, targets = x[:, :-1], x[:, 1:]
+        if noise is None and self.training and self.config.noise_std > 0:
+            noise = torch.randn_like(inputs) * self.config.noise_std
+        if noise is not None:
+            inputs = inputs + noise
+        params, _ = self(inputs)
+        nll = -mixture_log_prob(targets, **params).mean()  # E = -log p(x_{t+1} | x_t, h_t, C_t)  -- eq. (8)
+        return {"loss": nll, "nll": nll.detach()}
+
+    # --- generation (sec. 4.1.4) ----------------------------------------------------------
+
+    def sample_mixture(self, params: dict, generator: torch.Generator | None = None) -> torch.Tensor:
+        """params of one step ("logits" (N, M), "mu"/"log_sigma" (N, M, D)) -> a sample (N, D):
+        a component i ~ Categorical(w), then x ~ N(mu_i, diag(sigma_i^2))."""
+        w = torch.softmax(params["logits"], dim=-1)  # eq. (7)
+        i = torch.multinomial(w, 1, generator=generator)[:, 0]  # (N,)
+        rows = torch.arange(len(i))
+        mu, sigma = params["mu"][rows, i], params["log_sigma"][rows, i].exp()  # (N, D)
+        return mu + sigma * torch.randn(mu.shape, generator=generator, dtype=mu.dtype)
+
+    def fix_contacts(self, x: torch.Tensor, stats=None, mode: str = "threshold") -> torch.Tensor:
+        """x: (..., D) normalised sample -> the same with the contact bits made binary ("threshold" at 0.5),
+        clamped to [0, 1] ("clamp") or left alone ("none"), in raw units: raw = x * std + mean with
+        stats = (mean (D,), std (D,)); stats None means x is not normalised."""
+        if mode not in CONTACT_MODES:
+            raise ValueError(f"contact mode must be one of {CONTACT_MODES}, got {mode!r}")
+        cols = list(self.config.contact_dims)
+        if mode == "none" or not cols:
+            return x
+        mean, std = (torch.zeros(self.config.dim), torch.ones(self.config.dim)) if stats is None else \
+            (torch.as_tensor(np.asarray(s), dtype=x.dtype) for s in stats)
+        raw = x[..., cols] * std[cols] + mean[cols]
+        raw = (raw > 0.5).to(x.dtype) if mode == "threshold" else raw.clamp(0.0, 1.0)
+        out = x.clone()
+        out[..., cols] = (raw - mean[cols]) / std[cols]
+        return out
+
+    @torch.no_grad()
+    def sample_step(self, x_t: torch.Tensor, state=None, generator: torch.Generator | None = None,
+                    stats=None, contact_mode: str = "threshold") -> tuple[torch.Tensor, tuple]:
+        """One step of sec. 4.1.4: x_t (N, D), state (h_t, C_t) or None -> x_{t+1} (N, D), new state."""
+        params, state = self(x_t[:, None], state)
+        x_next = self.sample_mixture({k: v[:, -1] for k, v in params.items()}, generator)
+        return self.fix_contacts(x_next, stats, contact_mode), state
+
+    @torch.no_grad()
+    def generate(self, x0: torch.Tensor, steps: int, generator: torch.Generator | None = None,
+                 stats=None, contact_mode: str = "threshold") -> torch.Tensor:
+        """x0: (N, 2, D) two initial frames (normalised) -> (N, 2 + steps, D): x0 then ``steps`` sampled frames.
+
+        The network reads x_0 and x_1, then each sample x_{t+1} is fed back (sec. 4.1.4).  stats: the
+        dataset's (mean, std), used only to make the contact bits binary in raw units.
+        """
+        self._check(x0, "x0")
+        if x0.shape[1] != 2:
+            raise ValueError(f"x0 must hold two initial frames (N, 2, {self.config.dim}), got {tuple(x0.shape)}")
+        if int(steps) != steps or steps < 0:
+            raise ValueError(f"steps must be a non-negative int, got {steps!r}")
+        _, state = self(x0[:, :1])  # read x_0; x_1 is the first input of the loop
+        frames, x_t = [x0[:, 0], x0[:, 1]], x0[:, 1]
+        for _ in range(int(steps)):
+            x_t, state = self.sample_step(x_t, state, generator, stats, contact_mode)
+            frames.append(x_t)
+        return torch.stack(frames, dim=1)
+
+
+class _ClampGrad:
+    """A parameter hook clipping every gradient entry to [-c, c] (sec. 4.1.2); a class, not a lambda,
+    so models stay picklable and deep-copyable."""
+
+    def __init__(self, c: float):
+        self.c = float(c)
+
+    def __call__(self, grad: torch.Tensor) -> torch.Tensor:
+        return grad.clamp(-self.c, self.c)

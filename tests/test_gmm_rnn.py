@@ -1,0 +1,132 @@
+"""GMM-RNN (Wang, Chai et al. 2021, sec. 4.1): shapes, eq. (6)-(8) vs. torch.distributions, training,
+generation (sec. 4.1.4), gradient clipping by value, bad input."""
+
+import math
+
+import pytest
+import torch
+from torch import distributions as dist
+
+from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig, mixture_log_prob
+
+
+def tiny(**kw) -> GmmRnnConfig:
+    return GmmRnnConfig.cpu(**{"fc_width": 16, "lstm_width": 16, "out_width": 16, **kw})
+
+
+def test_paper_config_shapes():
+    """Fig. 3: widths 500, M = 5; the read-out has M (1 + 2 D) outputs (425 for the paper's D = 42)."""
+    assert GmmRnn(GmmRnnConfig(dim=42, contact_dims=(40, 41))).out.out_features == 425
+    torch.manual_seed(0)
+    m = GmmRnn(tiny())
+    params, (h, c) = m(torch.randn(3, 7, 68))
+    assert params["logits"].shape == (3, 7, 5)
+    assert params["mu"].shape == params["log_sigma"].shape == (3, 7, 5, 68)
+    assert h.shape == c.shape == (2, 3, 16)
+    assert (params["log_sigma"] >= math.log(0.01) - 1e-7).all()
+    c = GmmRnnConfig.cpu()
+    assert (c.fc_width, c.lstm_width, c.out_width, c.mixtures, c.noise_std, c.window, c.batch_size) == \
+        (128, 128, 128, 5, 0.05, 50, 20)
+    assert c.lr_factor(2) == pytest.approx(1e-3 * 0.95 ** 2 / c.lr)
+
+
+def test_mixture_nll_matches_torch_distributions():
+    """eq. (6)-(8) written out equals MixtureSameFamily(Categorical, Independent(Normal)) within 1e-5."""
+    g = torch.Generator().manual_seed(1)
+    logits, mu = torch.randn(4, 6, 5, generator=g), torch.randn(4, 6, 5, 9, generator=g)
+    log_sigma, x = 0.5 * torch.randn(4, 6, 5, 9, generator=g), torch.randn(4, 6, 9, generator=g)
+    ref = dist.MixtureSameFamily(dist.Categorical(logits=logits),
+                                 dist.Independent(dist.Normal(mu, log_sigma.exp()), 1)).log_prob(x)
+    ours = mixture_log_prob(x, logits, mu, log_sigma)
+    assert ours.shape == (4, 6)
+    assert torch.allclose(ours, ref, atol=1e-5, rtol=0)
+    # and the model's loss is the mean of -log p over frames (no noise in eval mode)
+    torch.manual_seed(0)
+    m = GmmRnn(tiny(dim=9, contact_dims=(7, 8))).eval()
+    xs = torch.randn(2, 5, 9, generator=g)
+    params, _ = m(xs[:, :-1])
+    mix = dist.MixtureSameFamily(dist.Categorical(logits=params["logits"]),
+                                 dist.Independent(dist.Normal(params["mu"], params["log_sigma"].exp()), 1))
+    assert m.loss(xs)["nll"].item() == pytest.approx(-mix.log_prob(xs[:, 1:]).mean().item(), abs=1e-5)
+
+
+def test_nll_decreases_when_fitted():
+    """100 RMSProp steps on one small batch of smooth sequences: the NLL falls by a lot."""
+    torch.manual_seed(0)
+    t = torch.linspace(0, 6, 20)
+    x = torch.stack([torch.sin(t + p)[:, None] * torch.linspace(0.5, 1.5, 6) for p in (0.0, 1.0, 2.0, 3.0)])
+    m = GmmRnn(tiny(dim=6, contact_dims=()))
+    opt = torch.optim.RMSprop(m.parameters(), lr=3e-3)
+    first = m.loss(x)["nll"].item()
+    for _ in range(100):
+        opt.zero_grad()
+        m.loss(x)["loss"].backward()
+        opt.step()
+    m.eval()
+    last = m.loss(x)["nll"].item()
+    assert last < first - 3.0, (first, last)
+
+
+def test_gradients_clipped_by_value():
+    """The hooks of sec. 4.1.2 clip every gradient entry to [-c, c]; without them some exceed c."""
+    torch.manual_seed(0)
+    x = 30 * torch.randn(2, 6, 68)
+    grads = {}
+    for c in (None, 0.01):
+        torch.manual_seed(0)
+        m = GmmRnn(tiny(grad_clip_value=c)).eval()
+        m.loss(x)["loss"].backward()
+        grads[c] = max(p.grad.abs().max().item() for p in m.parameters())
+    assert grads[None] > 0.01
+    assert grads[0.01] == pytest.approx(0.01)
+
+
+def test_generate_shapes_reproducible_and_contacts_binary():
+    torch.manual_seed(0)
+    m = GmmRnn(tiny()).eval()
+    x0 = torch.randn(3, 2, 68)
+    mean, std = torch.zeros(68), torch.ones(68)
+    mean[66:], std[66:] = 0.4, 0.5
+    a = m.generate(x0, 30, generator=torch.Generator().manual_seed(5), stats=(mean, std))
+    b = m.generate(x0, 30, generator=torch.Generator().manual_seed(5), stats=(mean, std))
+    c = m.generate(x0, 30, generator=torch.Generator().manual_seed(6), stats=(mean, std))
+    assert a.shape == (3, 32, 68) and torch.isfinite(a).all()
+    assert torch.equal(a, b) and not torch.equal(a, c)
+    assert torch.equal(a[:, :2], x0)
+    raw = a[:, 2:, 66:] * 0.5 + 0.4  # contact bits back in raw units: exactly 0 or 1
+    assert ((raw - 0).abs() < 1e-6).logical_or((raw - 1).abs() < 1e-6).all()
+    clamped = m.generate(x0, 10, generator=torch.Generator().manual_seed(5), contact_mode="clamp")
+    assert clamped[:, 2:, 66:].min() >= 0 and clamped[:, 2:, 66:].max() <= 1
+
+
+def test_sample_step_continues_generate():
+    """generate = read x_0, then sample_step from x_1 with the carried state (infinite generation)."""
+    torch.manual_seed(0)
+    m = GmmRnn(tiny()).eval()
+    x0 = torch.randn(2, 2, 68)
+    full = m.generate(x0, 4, generator=torch.Generator().manual_seed(3), contact_mode="none")
+    g = torch.Generator().manual_seed(3)
+    _, state = m(x0[:, :1])
+    x_t, frames = x0[:, 1], []
+    for _ in range(4):
+        x_t, state = m.sample_step(x_t, state, g, contact_mode="none")
+        frames.append(x_t)
+    assert torch.allclose(full[:, 2:], torch.stack(frames, 1))
+
+
+def test_bad_input_errors():
+    m = GmmRnn(tiny())
+    with pytest.raises(ValueError, match=r"\(N, T >= 1, 68\)"):
+        m(torch.randn(2, 5, 67))
+    with pytest.raises(ValueError, match="NaN"):
+        m.loss(torch.full((2, 5, 68), float("nan")))
+    with pytest.raises(ValueError, match="T >= 2"):
+        m.loss(torch.randn(2, 1, 68))
+    with pytest.raises(ValueError, match="two initial frames"):
+        m.generate(torch.randn(2, 3, 68), 5)
+    with pytest.raises(ValueError, match="steps"):
+        m.generate(torch.randn(2, 2, 68), -1)
+    with pytest.raises(ValueError, match="contact mode"):
+        m.generate(torch.randn(2, 2, 68), 1, contact_mode="round")
+    with pytest.raises(ValueError, match="contact_dims"):
+        GmmRnnConfig(dim=10)
