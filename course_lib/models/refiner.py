@@ -1,0 +1,395 @@
+"""Adversarial refiner of Wang, Chai et al. 2021 (IEEE TVCG 27(1)), sec. 4.2-4.3.
+
+Taught in notebooks/03_gmm_rnn_refiner.ipynb.
+
+The GMM-RNN's motions x_RNN (``state_features``, normalised, see gmm_rnn.py) are refined by a
+residual network R and judged by a discriminator D that sees end-effector positions and velocities:
+
+    R_input = [x, p_end(x), v_end(x)]
+    R(x)    = (W_r2 lstm(relu(W_r1 R_input + b_r1)) + b_r2) + x                 eq. (11), Fig. 4
+    D(x)    = sigmoid(W_d2 bilstm(relu(W_d1 [p_end(x), v_end(x)] + b_d1)) + b_d2)   eq. (12), Fig. 5
+    L_R     = -log D(R(x_RNN)) + lambda ||root(x) - root(R(x))||^2, lambda = 20  eq. (9), (13)
+    L_D     = -log(1 - D(R(x_RNN))) - log D(x_real)                              eq. (10)
+
+p_end and v_end are computed in torch (forward kinematics of the decoded pose), so D's loss is
+differentiable through to R's parameters.  Training (sec. 4.2.2): `AdversarialSchedule` (75
+warm-up updates of each network, then 5 R updates per D update, R's count doubled when D's loss
+< 0.01 and halved when > 1), `HistoryBuffer` (B = 320 refined motions; half of each D batch of
+b = 32 comes from it; b / 2 of its entries are replaced after each D update), RMSProp at lr 0.002
+(R) and 0.005 (D), decay 0.9.  Contact awareness (sec. 4.3): the contact bits are part of x, so R
+reads and refines them; `foot_lock` holds a contact foot's horizontal position fixed.
+
+Differs from the paper:
+- end effectors are the skeleton's leaf joints (toes, hands, head: 5 for the canonical skeleton).
+  p_end is taken in each frame's floor frame (the root's floor projection and heading, as the
+  features themselves are translation and rotation invariant) and v_end is the displacement from
+  frame t-1 to t in frame t-1's floor frame, times fps (m/s); frame 0 repeats frame 1.
+- D's output: Fig. 5 has FC2(2) then a single output; we read one logit from the concatenated last
+  forward and first backward hidden states of the BiLSTM (a 2-way softmax is a sigmoid of a
+  difference).  Losses use log-sigmoid of the logit, never log(D + eps).
+- R's last layer is initialised at 1% of PyTorch's default scale so that R starts near the identity
+  (the paper does not say how R is initialised).
+- ||root(x) - root(R(x))||^2 is summed over x, y, z and averaged over frames and motions; root()
+  integrates eq. (4) from the origin for both motions.
+- ``contacts=False`` (the paper's GAN1, no contact awareness) hides the contact bits from R's input
+  and passes them through unchanged.
+- the buffer replaces b / 2 = 16 entries per D update (the paper's text); it stores refined motions
+  detached, so D's half-batch from the buffer carries no gradient to R.
+- `foot_lock` works on joint positions only (ankle and toe hold the horizontal position of the first
+  frame of each contact run); the paper does not describe its clean-up, a full one would use IK.
+- ``RefinerConfig.cpu()`` shrinks the widths: R 500 -> 128 (FC1), 1000 -> 128 (LSTM); D 500 -> 64.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from course_lib.rotations import euler_to_quat, expmap_to_quat
+from course_lib.skeleton import Skeleton, forward_kinematics
+
+__all__ = ["AdversarialSchedule", "Discriminator", "HistoryBuffer", "Refiner", "RefinerConfig",
+           "discriminator_loss", "end_effector_features", "foot_lock", "local_positions",
+           "refiner_adversarial_loss", "refiner_loss", "root_regularisation", "root_trajectory"]
+
+
+@dataclass
+class RefinerConfig:
+    """Refiner R and discriminator D hyper-parameters; the defaults are the paper's (Fig. 4-5, sec. 4.2.2)."""
+
+    dim: int = 68  # state features incl. the 2 contact bits (sec. 4.3), 21 joints
+    num_end_effectors: int = 5  # leaf joints of the canonical skeleton: toes, head, hands
+    fc_width: int = 500  # R's FC1 (Fig. 4)
+    lstm_width: int = 1000  # R's LSTM (Fig. 4)
+    d_fc_width: int = 500  # D's FC1 (Fig. 5)
+    d_lstm_width: int = 500  # D's BiLSTM, per direction (Fig. 5)
+    contacts: bool = True  # GAN2 (contact-aware, sec. 4.3); False = GAN1
+    contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits
+    lam: float = 20.0  # lambda of the root self-regularisation, eq. (13)
+    fps: float = 30.0  # frame rate of the features (for v_end in m/s)
+    lr_refiner: float = 0.002  # RMSProp (sec. 4.2.2)
+    lr_discriminator: float = 0.005  # RMSProp (sec. 4.2.2)
+    rmsprop_decay: float = 0.9  # RMSProp's alpha (sec. 4.2.2)
+    buffer_size: int = 320  # B (sec. 4.2.2)
+    d_batch: int = 32  # b: half current refined motions, half from the buffer
+    warmup: int = 75  # updates of each network before the 5:1 schedule
+    r_per_d: int = 5  # refiner updates per discriminator update
+    d_loss_low: float = 0.01  # D loss below: R's update count doubled
+    d_loss_high: float = 1.0  # D loss above: R's update count halved
+    residual_init_scale: float = 0.01  # R's last layer starts at 1% of the default init (see "differs")
+
+    @classmethod
+    def cpu(cls, **overrides) -> RefinerConfig:
+        """The CPU preset: fc_width 500 -> 128, lstm_width 1000 -> 128, d_fc_width and d_lstm_width 500 -> 64."""
+        return cls(**{"fc_width": 128, "lstm_width": 128, "d_fc_width": 64, "d_lstm_width": 64, **overrides})
+
+    def __post_init__(self):
+        sizes = (self.dim, self.num_end_effectors, self.fc_width, self.lstm_width, self.d_fc_width,
+                 self.d_lstm_width, self.buffer_size, self.d_batch, self.r_per_d)
+        if min(sizes) < 1 or self.warmup < 0:
+            raise ValueError(f"RefinerConfig: sizes must be positive, got {self}")
+        if self.d_batch % 2 or self.d_batch // 2 > self.buffer_size:
+            raise ValueError(f"RefinerConfig: d_batch must be even and d_batch / 2 <= buffer_size, got {self}")
+        self.contact_dims = tuple(int(c) for c in self.contact_dims)
+        if any(not 0 <= c < self.dim for c in self.contact_dims):
+            raise ValueError(f"RefinerConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
+        if not 0 < self.d_loss_low < self.d_loss_high:
+            raise ValueError(f"RefinerConfig: need 0 < d_loss_low < d_loss_high, got {self}")
+
+    @property
+    def refined_dims(self) -> tuple[int, ...]:
+        """The feature columns R reads and changes (all, or all but the contact bits for GAN1)."""
+        return tuple(range(self.dim)) if self.contacts else \
+            tuple(c for c in range(self.dim) if c not in self.contact_dims)
+
+
+# ----------------------------------------------------------------------------- kinematics in torch
+
+
+def _check_features(x: torch.Tensor, skeleton: Skeleton, name: str = "features") -> None:
+    D = 6 + 3 * (skeleton.num_joints - 1) + 2
+    if not torch.is_tensor(x) or x.ndim < 2 or x.shape[-1] != D:
+        shape = tuple(x.shape) if torch.is_tensor(x) else type(x).__name__
+        raise ValueError(f"{name} must be (..., T, {D}) state features for {skeleton.num_joints} joints, got {shape}")
+    if not torch.isfinite(x).all():
+        raise ValueError(f"{name} contains NaN or inf")
+
+
+def _rot_y(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+    """Floor-frame (x, z) vectors (..., 2), yaw (...) -> world, R_y(yaw) v (as representations._to_world)."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
+
+
+def local_positions(features: torch.Tensor, skeleton: Skeleton, offsets: torch.Tensor | None = None) -> torch.Tensor:
+    """Raw state features (..., T, D) -> joint positions (..., T, J, 3) in each frame's floor frame
+    (origin under the root, +Z the heading): FK of R_x(pitch) R_z(roll), the expmaps, root height."""
+    _check_features(features, skeleton)
+    root_tilt = torch.stack((torch.zeros_like(features[..., 4]), features[..., 4], features[..., 5]), -1)
+    root_q = euler_to_quat(root_tilt, "YXZ")  # (..., T, 4): R_y(0) R_x(pitch) R_z(roll)
+    theta = features[..., 6:-2].unflatten(-1, (skeleton.num_joints - 1, 3))  # (..., T, J-1, 3)
+    q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J, 4)
+    root = torch.stack((torch.zeros_like(features[..., 3]), features[..., 3], torch.zeros_like(features[..., 3])), -1)
+    off = torch.as_tensor(skeleton.offsets, dtype=features.dtype) if offsets is None else offsets.to(features.dtype)
+    return forward_kinematics(q, root, off, skeleton.parents)[0]
+
+
+def root_trajectory(features: torch.Tensor, init=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
+    """Raw state features (..., T, D) -> world root positions (..., T, 3) and heading yaw (..., T).
+
+    Wang eq. (4), M_t = M_{t-1} M_t,local, in torch (representations.integrate_root); row 0 of the
+    deltas is ignored, frame 0 sits at init = (x0, z0, yaw0).
+    """
+    if not torch.is_tensor(features) or features.ndim < 2 or features.shape[-1] < 6:
+        raise ValueError(f"features must be (..., T, D >= 6), got {getattr(features, 'shape', type(features))}")
+    x0, z0, yaw0 = (float(v) for v in init)
+    dyaw = features[..., 1:, 2]
+    yaw = yaw0 + torch.cat((torch.zeros_like(features[..., :1, 2]), torch.cumsum(dyaw, -1)), -1)  # (..., T)
+    step = _rot_y(features[..., 1:, 0:2], yaw[..., :-1])  # p_t - p_{t-1} = R_y(yaw_{t-1}) d_t
+    xz = torch.cat((torch.zeros_like(step[..., :1, :]), torch.cumsum(step, -2)), -2)  # (..., T, 2)
+    root = torch.stack((xz[..., 0] + x0, features[..., 3], xz[..., 1] + z0), -1)
+    return root, yaw
+
+
+def end_effector_features(features: torch.Tensor, skeleton: Skeleton, fps: float,
+                          offsets: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Raw state features (..., T, D) -> p_end, v_end: (..., T, 3E) each (E = leaf joints).
+
+    p_end: positions in the frame's floor frame; v_end: (p_t - p_{t-1}) expressed in frame t-1's
+    floor frame, times fps: R_y(dyaw_t) p^local_t + (dx_t, 0, dz_t) - p^local_{t-1}.
+    """
+    pos = local_positions(features, skeleton, offsets)[..., list(skeleton.end_effectors), :]  # (..., T, E, 3)
+    T = pos.shape[-3]
+    if T < 2:
+        raise ValueError(f"end_effector_features needs T >= 2 frames for velocities, got {T}")
+    d, dyaw = features[..., 1:, None, 0:2], features[..., 1:, None, 2]
+    moved_xz = _rot_y(pos[..., 1:, :, [0, 2]], dyaw) + d  # frame t's points in frame t-1's floor frame
+    moved = torch.stack((moved_xz[..., 0], pos[..., 1:, :, 1], moved_xz[..., 1]), -1)
+    v = (moved - pos[..., :-1, :, :]) * fps  # (..., T-1, E, 3)
+    v = torch.cat((v[..., :1, :, :], v), -3)  # frame 0 repeats frame 1
+    return pos.flatten(-2), v.flatten(-2)
+
+
+# ----------------------------------------------------------------------------- networks
+
+
+class Refiner(nn.Module):
+    """R of eq. (11), Fig. 4: normalised features x (N, T, D) -> refined x (N, T, D) (residual).
+
+    skeleton: for p_end/v_end (canonical by default); stats: the dataset's (mean (D,), std (D,)),
+    kept as buffers (saved with the weights) to undo the normalisation before the kinematics.
+    """
+
+    def __init__(self, config: RefinerConfig | None = None, skeleton: Skeleton | None = None, stats=None):
+        super().__init__()
+        self.config = c = config or RefinerConfig()
+        self.skeleton = skeleton or Skeleton.canonical()
+        if len(self.skeleton.end_effectors) != c.num_end_effectors:
+            raise ValueError(f"skeleton has {len(self.skeleton.end_effectors)} end effectors, config says "
+                             f"{c.num_end_effectors}")
+        mean, std = (np.zeros(c.dim), np.ones(c.dim)) if stats is None else stats
+        self.register_buffer("mean", torch.as_tensor(np.asarray(mean), dtype=torch.float32).reshape(c.dim))
+        self.register_buffer("std", torch.as_tensor(np.asarray(std), dtype=torch.float32).reshape(c.dim))
+        self.register_buffer("offsets", torch.as_tensor(self.skeleton.offsets, dtype=torch.float32))
+        self.register_buffer("cols", torch.tensor(c.refined_dims, dtype=torch.long))
+        r_in = len(c.refined_dims) + 6 * c.num_end_effectors
+        self.fc1 = nn.Linear(r_in, c.fc_width)
+        self.lstm = nn.LSTM(c.fc_width, c.lstm_width, batch_first=True)
+        self.fc2 = nn.Linear(c.lstm_width, len(c.refined_dims))
+        with torch.no_grad():
+            self.fc2.weight.mul_(c.residual_init_scale)
+            self.fc2.bias.zero_()
+
+    def raw(self, x: torch.Tensor) -> torch.Tensor:
+        """Normalised (..., D) -> raw units (x * std + mean)."""
+        return x * self.std + self.mean
+
+    def end_effectors(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Normalised x (N, T, D) -> p_end(x), v_end(x): (N, T, 3E) each, metres and m/s."""
+        return end_effector_features(self.raw(x), self.skeleton, self.config.fps, self.offsets)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """x: (N, T, D) normalised x_RNN -> R(x): (N, T, D)."""
+        _check_features(x, self.skeleton, "x")
+        if x.ndim != 3:
+            raise ValueError(f"x must be (N, T, {self.config.dim}), got {tuple(x.shape)}")
+        p_end, v_end = self.end_effectors(x)  # (N, T, 3E) each
+        r_input = torch.cat((x.index_select(-1, self.cols), p_end, v_end), -1)  # R_input, eq. (11)
+        h, _ = self.lstm(F.relu(self.fc1(r_input)))  # (N, T, lstm_width)
+        delta = self.fc2(h)  # W_r2 lstm(relu(W_r1 R_input + b_r1)) + b_r2
+        # R(x) = delta + x, only on the refined columns (all of them when contact-aware)  -- eq. (11)
+        return x + torch.zeros_like(x).index_add(-1, self.cols, delta)
+
+
+class Discriminator(nn.Module):
+    """D of eq. (12), Fig. 5: [p_end, v_end] (N, T, 6E) -> probability of being real (N,)."""
+
+    def __init__(self, config: RefinerConfig | None = None):
+        super().__init__()
+        self.config = c = config or RefinerConfig()
+        self.fc1 = nn.Linear(6 * c.num_end_effectors, c.d_fc_width)
+        self.bilstm = nn.LSTM(c.d_fc_width, c.d_lstm_width, batch_first=True, bidirectional=True)
+        self.fc2 = nn.Linear(2 * c.d_lstm_width, 1)
+
+    def logits(self, p_end: torch.Tensor, v_end: torch.Tensor) -> torch.Tensor:
+        """p_end, v_end: (N, T, 3E) -> logit of D (N,)."""
+        E3 = 3 * self.config.num_end_effectors
+        if p_end.shape != v_end.shape or p_end.ndim != 3 or p_end.shape[-1] != E3:
+            raise ValueError(f"p_end and v_end must both be (N, T, {E3}), got {tuple(p_end.shape)}, "
+                             f"{tuple(v_end.shape)}")
+        d_input = torch.cat((p_end, v_end), -1)  # eq. (12)
+        h, _ = self.bilstm(F.relu(self.fc1(d_input)))  # (N, T, 2 H)
+        H = self.config.d_lstm_width
+        last = torch.cat((h[:, -1, :H], h[:, 0, H:]), -1)  # forward pass's end, backward pass's end
+        return self.fc2(last)[:, 0]  # W_d2 bilstm(...) + b_d2
+
+    def forward(self, p_end: torch.Tensor, v_end: torch.Tensor) -> torch.Tensor:
+        """p_end, v_end: (N, T, 3E) -> D(x): (N,) in (0, 1)."""
+        return torch.sigmoid(self.logits(p_end, v_end))
+
+
+# ----------------------------------------------------------------------------- losses
+
+
+def refiner_adversarial_loss(d_fake_logits: torch.Tensor) -> torch.Tensor:
+    """(N,) logits of D(R(x_RNN)) -> -log D(R(x_RNN)), mean over motions   -- eq. (9)."""
+    return F.softplus(-d_fake_logits).mean()  # -log sigmoid(l) = softplus(-l)
+
+
+def discriminator_loss(d_real_logits: torch.Tensor, d_fake_logits: torch.Tensor) -> torch.Tensor:
+    """-log(1 - D(R(x_RNN))) - log D(x_real), each averaged over its motions   -- eq. (10)."""
+    return F.softplus(d_fake_logits).mean() + F.softplus(-d_real_logits).mean()  # -log(1 - s(l)) = softplus(l)
+
+
+def root_regularisation(x_raw: torch.Tensor, refined_raw: torch.Tensor) -> torch.Tensor:
+    """Raw features (N, T, D) of x and R(x) -> ||root(x) - root(R(x))||^2 (sum over xyz, mean over N, T)."""
+    return ((root_trajectory(x_raw)[0] - root_trajectory(refined_raw)[0]) ** 2).sum(-1).mean()
+
+
+def refiner_loss(d_fake_logits: torch.Tensor, x_raw: torch.Tensor, refined_raw: torch.Tensor,
+                 lam: float = 20.0) -> dict:
+    """E = -log D(R(x)) + lambda ||root(x) - root(R(x))||^2   -- eq. (13) -> {"loss", "adversarial", "root"}."""
+    adv, reg = refiner_adversarial_loss(d_fake_logits), root_regularisation(x_raw, refined_raw)
+    return {"loss": adv + lam * reg, "adversarial": adv.detach(), "root": reg.detach()}
+
+
+# ----------------------------------------------------------------------------- training recipe (sec. 4.2.2)
+
+
+class HistoryBuffer:
+    """B refined motions from earlier refiners (sec. 4.2.2, after Shrivastava et al. 2017).
+
+    fill(B samples) at the start; each D update takes b/2 current samples + b/2 from the buffer
+    (`discriminator_batch`), then `replace` overwrites b/2 random entries with the current ones.
+    """
+
+    def __init__(self, capacity: int = 320, generator: torch.Generator | None = None):
+        if capacity < 1:
+            raise ValueError(f"HistoryBuffer: capacity must be >= 1, got {capacity}")
+        self.capacity, self.generator, self.data = int(capacity), generator, None
+
+    def __len__(self) -> int:
+        return 0 if self.data is None else len(self.data)
+
+    def fill(self, samples: torch.Tensor) -> None:
+        """samples: (B, ...) -> the buffer's initial content (detached copies)."""
+        if len(samples) != self.capacity:
+            raise ValueError(f"HistoryBuffer.fill needs exactly {self.capacity} samples, got {len(samples)}")
+        self.data = samples.detach().clone()
+
+    def _need(self, n: int, what: str) -> None:
+        if self.data is None:
+            raise RuntimeError("HistoryBuffer is empty: call fill(samples) first")
+        if not 0 <= n <= self.capacity:
+            raise ValueError(f"HistoryBuffer.{what}: n = {n} not in 0..{self.capacity}")
+
+    def sample(self, n: int) -> torch.Tensor:
+        """n distinct random entries (n, ...)."""
+        self._need(n, "sample")
+        return self.data[torch.randperm(self.capacity, generator=self.generator)[:n]]
+
+    def replace(self, new: torch.Tensor) -> torch.Tensor:
+        """Overwrite len(new) distinct random entries with new (detached); returns their indices."""
+        self._need(len(new), "replace")
+        if new.shape[1:] != self.data.shape[1:]:
+            raise ValueError(f"HistoryBuffer.replace: samples {tuple(new.shape[1:])} != stored {tuple(self.data.shape[1:])}")
+        idx = torch.randperm(self.capacity, generator=self.generator)[: len(new)]
+        self.data[idx] = new.detach().to(self.data.dtype)
+        return idx
+
+    def discriminator_batch(self, current: torch.Tensor) -> torch.Tensor:
+        """current: (b/2, ...) refined now -> (b, ...): current then b/2 from the buffer."""
+        return torch.cat((current, self.sample(len(current)).to(current.dtype)))
+
+
+class AdversarialSchedule:
+    """How many R and D updates each round gets (sec. 4.2.2).
+
+    Round 0 is the warm-up: (warmup, warmup) updates.  Every later round: (r_updates, 1); after each
+    D update `record(d_loss)` doubles r_updates if d_loss < low and halves it (at least 1) if > high.
+    """
+
+    def __init__(self, warmup: int = 75, r_per_d: int = 5, low: float = 0.01, high: float = 1.0,
+                 max_r_updates: int = 640):
+        if warmup < 0 or r_per_d < 1 or not 0 < low < high or max_r_updates < r_per_d:
+            raise ValueError(f"AdversarialSchedule: bad settings warmup={warmup}, r_per_d={r_per_d}, "
+                             f"low={low}, high={high}, max_r_updates={max_r_updates}")
+        self.warmup, self.low, self.high, self.max_r_updates = warmup, low, high, max_r_updates
+        self.r_updates, self.round = r_per_d, 0
+        self.history: list[int] = []  # r_updates of every round after the warm-up, for plots
+
+    @classmethod
+    def from_config(cls, config: RefinerConfig) -> AdversarialSchedule:
+        return cls(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high)
+
+    def next_round(self) -> tuple[int, int]:
+        """-> (refiner updates, discriminator updates) of the next round."""
+        self.round += 1
+        if self.round == 1 and self.warmup > 0:
+            return self.warmup, self.warmup
+        self.history.append(self.r_updates)
+        return self.r_updates, 1
+
+    def record(self, d_loss: float) -> int:
+        """D's loss after its update -> R's update count for the next round."""
+        if not math.isfinite(d_loss):
+            raise FloatingPointError(f"discriminator loss is {d_loss}")
+        if d_loss < self.low:  # D too strong: train R more
+            self.r_updates = min(2 * self.r_updates, self.max_r_updates)
+        elif d_loss > self.high:  # D too weak: train R less
+            self.r_updates = max(self.r_updates // 2, 1)
+        return self.r_updates
+
+
+# ----------------------------------------------------------------------------- contact clean-up (sec. 4.3)
+
+
+def foot_lock(positions, contacts, skeleton: Skeleton | None = None, threshold: float = 0.5) -> np.ndarray:
+    """positions (..., T, J, 3), contacts (..., T, 2) predicted (left, right) -> positions (..., T, J, 3).
+
+    While a foot's contact stays above ``threshold``, its ankle and toe keep the horizontal (x, z)
+    position of the first frame of the contact run; heights and other joints are unchanged.
+    """
+    pos = np.array(positions, dtype=np.float64)  # a copy, also of torch tensors
+    c = np.asarray(contacts, dtype=np.float64) > threshold
+    skeleton = skeleton or Skeleton.canonical()
+    J = skeleton.num_joints
+    if pos.ndim < 3 or pos.shape[-2:] != (J, 3) or c.shape != pos.shape[:-2] + (2,):
+        raise ValueError(f"foot_lock: positions must be (..., T, {J}, 3) and contacts (..., T, 2), got "
+                         f"{pos.shape}, {c.shape}")
+    if not np.isfinite(pos).all():
+        raise ValueError("foot_lock: positions contain NaN or inf")
+    lf, lt, rf, rt = skeleton.feet
+    for side, joints in enumerate(([lf, lt], [rf, rt])):
+        for t in range(1, pos.shape[-3]):
+            hold = c[..., t, side] & c[..., t - 1, side]  # (...,) still in the same contact run
+            xz = pos[..., t - 1, :, :][..., joints, :][..., [0, 2]]  # (..., 2 joints, 2)
+            cur = pos[..., t, :, :][..., joints, :]
+            cur[..., [0, 2]] = np.where(hold[..., None, None], xz, cur[..., [0, 2]])
+            pos[..., t, joints, :] = cur
+    return pos

@@ -1,0 +1,195 @@
+"""Adversarial refiner (Wang, Chai et al. 2021, sec. 4.2-4.3): kinematics in torch vs. representations.py,
+R and D shapes, losses of eq. (9), (10), (13) on hand-made inputs, history buffer, schedule, foot lock."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.models.refiner import (AdversarialSchedule, Discriminator, HistoryBuffer, Refiner, RefinerConfig,
+                                       discriminator_loss, end_effector_features, foot_lock, local_positions,
+                                       refiner_adversarial_loss, refiner_loss, root_regularisation, root_trajectory)
+from course_lib.motion import Motion
+from course_lib.representations import encode_state_features, root_yaw_pitch_roll
+from course_lib.rotations import euler_to_quat, expmap_to_quat
+from course_lib.skeleton import Skeleton
+
+SK = Skeleton.canonical()
+
+
+def tiny(**kw) -> RefinerConfig:
+    return RefinerConfig.cpu(**{"fc_width": 16, "lstm_width": 16, "d_fc_width": 16, "d_lstm_width": 8, **kw})
+
+
+def turning_motion(T: int = 24, fps: float = 30.0, seed: int = 0) -> Motion:
+    """A character walking on a curve with tilted root and random smooth joint rotations."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) / fps
+    axis_angle = 0.3 * np.sin(2 * t[:, None, None] + rng.uniform(0, 6, (1, SK.num_joints, 3)))
+    yaw = 0.8 * t + 0.3
+    axis_angle[:, 0] = 0.0
+    rot = expmap_to_quat(torch.from_numpy(axis_angle)).numpy()
+    ypr = np.stack((yaw, 0.1 + 0 * yaw, 0.05 * np.cos(3 * t)), -1)  # R_y(yaw) R_x(pitch) R_z(roll)
+    rot[:, 0] = euler_to_quat(torch.from_numpy(ypr), "YXZ").numpy()
+    root = np.stack((np.sin(yaw) * t, 0.95 + 0.02 * np.sin(5 * t), 1.2 * t), -1)
+    return Motion(rot, root, SK, fps)
+
+
+def test_torch_kinematics_match_the_motion():
+    """root_trajectory (eq. 4) + local_positions rebuild Motion.positions(); v_end is the finite difference
+    of the world end-effector positions in the previous frame's floor frame."""
+    m = turning_motion()
+    f = torch.from_numpy(encode_state_features(m))
+    yaw0 = float(root_yaw_pitch_roll(m)[0, 0])
+    root, yaw = root_trajectory(f, (m.root_positions[0, 0], m.root_positions[0, 2], yaw0))
+    assert np.abs(root.numpy() - m.root_positions).max() < 1e-9
+    local = local_positions(f, SK).numpy()  # (T, J, 3)
+    c, s = np.cos(yaw.numpy())[:, None], np.sin(yaw.numpy())[:, None]
+    world = np.stack((c * local[..., 0] + s * local[..., 2] + root.numpy()[:, None, 0], local[..., 1],
+                      -s * local[..., 0] + c * local[..., 2] + root.numpy()[:, None, 2]), -1)
+    assert np.abs(world - m.positions()).max() < 1e-6
+    p_end, v_end = end_effector_features(f, SK, m.fps)
+    E = list(SK.end_effectors)
+    assert p_end.shape == v_end.shape == (len(m), 15)
+    dw = np.diff(m.positions()[:, E], axis=0) * m.fps  # (T-1, E, 3) world velocities
+    c, s = np.cos(yaw.numpy()[:-1])[:, None], np.sin(yaw.numpy()[:-1])[:, None]
+    local_v = np.stack((c * dw[..., 0] - s * dw[..., 2], dw[..., 1], s * dw[..., 0] + c * dw[..., 2]), -1)
+    assert np.abs(v_end.numpy()[1:].reshape(-1, 5, 3) - local_v).max() < 1e-6
+    assert torch.equal(v_end[0], v_end[1])
+
+
+def test_refiner_and_discriminator_shapes_and_near_identity():
+    torch.manual_seed(0)
+    c = tiny()
+    R, D = Refiner(c), Discriminator(c)
+    x = 0.3 * torch.randn(4, 12, 68)
+    y = R(x)
+    assert y.shape == (4, 12, 68)
+    assert 0 < (y - x).abs().max() < 0.05  # residual with a small last layer: R(x) ~ x
+    p, v = R.end_effectors(x)
+    assert p.shape == v.shape == (4, 12, 15)
+    prob = D(p, v)
+    assert prob.shape == (4,) and ((prob > 0) & (prob < 1)).all()
+    assert torch.allclose(prob, torch.sigmoid(D.logits(p, v)))
+    assert R.fc1.in_features == 68 + 30 and D.fc1.in_features == 30
+    paper = RefinerConfig()
+    assert (paper.fc_width, paper.lstm_width, paper.lam, paper.buffer_size, paper.d_batch) == (500, 1000, 20.0, 320, 32)
+
+
+def test_gan1_leaves_contacts_unchanged():
+    torch.manual_seed(0)
+    R = Refiner(tiny(contacts=False, residual_init_scale=1.0))
+    x = 0.3 * torch.randn(2, 6, 68)
+    y = R(x)
+    assert R.fc1.in_features == 66 + 30
+    assert torch.equal(y[..., 66:], x[..., 66:]) and (y[..., :66] - x[..., :66]).abs().max() > 1e-3
+
+
+def test_losses_on_hand_made_inputs():
+    big = torch.tensor([50.0, 50.0])
+    # D(real) = 1, D(fake) = 0: eq. (10) is 0; D = 0.5 everywhere: 2 log 2
+    assert discriminator_loss(big, -big).item() == pytest.approx(0.0, abs=1e-12)
+    assert discriminator_loss(torch.zeros(3), torch.zeros(3)).item() == pytest.approx(2 * math.log(2))
+    # eq. (9): -log D(R(x)) with D = 0.25 (logit log(1/3))
+    assert refiner_adversarial_loss(torch.full((2,), math.log(1 / 3))).item() == pytest.approx(-math.log(0.25))
+    # eq. (13): refined motion shifted by 0.1 m in height -> ||.||^2 = 0.01 on every frame
+    x = torch.zeros(2, 5, 68)
+    refined = x.clone()
+    refined[..., 3] += 0.1
+    assert root_regularisation(x, refined).item() == pytest.approx(0.01)
+    # a forward step of 0.1 m on frame 2 only: frames 2..4 are 0.1 m off, frames 0-1 not: 3/5 * 0.01
+    refined = x.clone()
+    refined[:, 2, 1] = 0.1
+    assert root_regularisation(x, refined).item() == pytest.approx(0.006)
+    out = refiner_loss(torch.zeros(2), x, refined, lam=20.0)
+    assert out["loss"].item() == pytest.approx(math.log(2) + 20 * 0.006)
+
+
+def test_gradients_flow_from_d_loss_to_refiner():
+    """The kinematics are torch: D's loss on R's output reaches every parameter of R."""
+    torch.manual_seed(0)
+    c = tiny()
+    R, D = Refiner(c), Discriminator(c)
+    x_rnn, x_real = 0.3 * torch.randn(3, 8, 68), 0.3 * torch.randn(3, 8, 68)
+    fake = D.logits(*R.end_effectors(R(x_rnn)))
+    real = D.logits(*R.end_effectors(x_real))
+    discriminator_loss(real, fake).backward()
+    for name, p in R.named_parameters():
+        assert p.grad is not None and p.grad.abs().sum() > 0, name
+
+
+def test_history_buffer_semantics():
+    g = torch.Generator().manual_seed(0)
+    buf = HistoryBuffer(320, generator=g)
+    with pytest.raises(RuntimeError, match="fill"):
+        buf.sample(4)
+    buf.fill(torch.arange(320.0)[:, None, None].expand(320, 3, 2))
+    assert len(buf) == 320
+    current = -torch.ones(16, 3, 2)
+    batch = buf.discriminator_batch(current)
+    assert batch.shape == (32, 3, 2)
+    assert torch.equal(batch[:16], current) and (batch[16:] >= 0).all()  # half current, half history
+    assert len(set(batch[16:, 0, 0].tolist())) == 16  # distinct buffer entries
+    before = buf.data.clone()
+    idx = buf.replace(current)
+    changed = (buf.data != before).any(-1).any(-1)
+    assert changed.sum().item() == 16 and len(buf) == 320  # b/2 entries replaced, size fixed
+    assert torch.equal(torch.nonzero(changed)[:, 0], idx.sort().values)
+    # the same seed gives the same choice
+    again = HistoryBuffer(320, generator=torch.Generator().manual_seed(0))
+    again.fill(before.clone() * 0 + torch.arange(320.0)[:, None, None])
+    assert torch.equal(again.discriminator_batch(current), batch)
+    with pytest.raises(ValueError, match="exactly 320"):
+        buf.fill(torch.zeros(10, 3, 2))
+
+
+def test_adversarial_schedule_doubles_and_halves():
+    s = AdversarialSchedule.from_config(RefinerConfig())
+    assert s.next_round() == (75, 75)  # warm-up: each network 75 times
+    assert s.next_round() == (5, 1)
+    assert s.record(0.5) == 5  # in range: unchanged
+    assert s.record(0.005) == 10  # D too strong: R trained twice as often
+    assert s.next_round() == (10, 1)
+    assert s.record(0.001) == 20
+    assert s.record(2.0) == 10 and s.record(3.0) == 5 and s.record(3.0) == 2 and s.record(3.0) == 1
+    assert s.record(5.0) == 1  # never below one update
+    assert s.history == [5, 10]
+    with pytest.raises(FloatingPointError):
+        s.record(float("nan"))
+
+
+def test_foot_lock_zeroes_contact_foot_speed():
+    rng = np.random.default_rng(0)
+    T = 10
+    pos = rng.normal(size=(T, SK.num_joints, 3))
+    contacts = np.zeros((T, 2))
+    contacts[2:6, 0] = 1.0  # left foot planted on frames 2-5
+    contacts[5:9, 1] = 0.9  # right foot on frames 5-8
+    out = foot_lock(pos, contacts)
+    lf, lt, rf, rt = SK.feet
+    for joints, frames in (([lf, lt], slice(2, 6)), ([rf, rt], slice(5, 9))):
+        speed = np.linalg.norm(np.diff(out[frames][:, joints][..., [0, 2]], axis=0), axis=-1)
+        assert speed.max() == 0.0  # horizontal foot speed zero during contact
+        assert np.array_equal(out[frames][:, joints, 1], pos[frames][:, joints, 1])  # heights untouched
+    assert np.array_equal(out[:2], pos[:2]) and np.array_equal(out[9], pos[9])  # no contact
+    others = [j for j in range(SK.num_joints) if j not in SK.feet]
+    assert np.array_equal(out[:, others], pos[:, others])
+    batched = foot_lock(np.stack((pos, pos)), np.stack((contacts, 0 * contacts)))
+    assert np.array_equal(batched[0], out) and np.array_equal(batched[1], pos)
+
+
+def test_bad_input_errors():
+    R = Refiner(tiny())
+    with pytest.raises(ValueError, match=r"\(\.\.\., T, 68\)"):
+        R(torch.randn(2, 5, 67))
+    with pytest.raises(ValueError, match="NaN"):
+        R(torch.full((2, 5, 68), float("nan")))
+    with pytest.raises(ValueError, match="T >= 2"):
+        R(torch.randn(2, 1, 68))
+    with pytest.raises(ValueError, match=r"\(N, T, 15\)"):
+        Discriminator(tiny())(torch.randn(2, 5, 15), torch.randn(2, 5, 12))
+    with pytest.raises(ValueError, match="contacts"):
+        foot_lock(np.zeros((5, 21, 3)), np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="d_batch"):
+        RefinerConfig(d_batch=31)
