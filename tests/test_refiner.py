@@ -7,9 +7,21 @@ import numpy as np
 import pytest
 import torch
 
-from course_lib.models.refiner import (AdversarialSchedule, Discriminator, HistoryBuffer, Refiner, RefinerConfig,
-                                       discriminator_loss, end_effector_features, foot_lock, local_positions,
-                                       refiner_adversarial_loss, refiner_loss, root_regularisation, root_trajectory)
+from course_lib.models.refiner import (
+    AdversarialSchedule,
+    Discriminator,
+    HistoryBuffer,
+    Refiner,
+    RefinerConfig,
+    discriminator_loss,
+    end_effector_features,
+    foot_lock,
+    local_positions,
+    refiner_adversarial_loss,
+    refiner_loss,
+    root_regularisation,
+    root_trajectory,
+)
 from course_lib.motion import Motion
 from course_lib.representations import encode_state_features, root_yaw_pitch_roll
 from course_lib.rotations import euler_to_quat, expmap_to_quat

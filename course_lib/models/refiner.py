@@ -317,7 +317,8 @@ class HistoryBuffer:
         """Overwrite len(new) distinct random entries with new (detached); returns their indices."""
         self._need(len(new), "replace")
         if new.shape[1:] != self.data.shape[1:]:
-            raise ValueError(f"HistoryBuffer.replace: samples {tuple(new.shape[1:])} != stored {tuple(self.data.shape[1:])}")
+            raise ValueError(f"HistoryBuffer.replace: samples {tuple(new.shape[1:])} != stored "
+                             f"{tuple(self.data.shape[1:])}")
         idx = torch.randperm(self.capacity, generator=self.generator)[: len(new)]
         self.data[idx] = new.detach().to(self.data.dtype)
         return idx
