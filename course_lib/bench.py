@@ -165,10 +165,25 @@ def main(argv: list[str] | None = None) -> None:
         import torch
 
         torch.set_num_threads(max(1, args.threads))
+    accuracy = not args.only or args.only in "classifier accuracy"  # `--only accuracy` prints it alone
     try:
         print(run(args.only, args.repeat))
     except ValueError as err:
-        parser.error(str(err))
+        if not accuracy:
+            parser.error(str(err))
+    if accuracy:
+        print(accuracy_report())
+
+
+def accuracy_report() -> str:
+    """Held-out accuracy of the shipped action/style classifiers (Markdown), or why it is missing."""
+    from course_lib.evaluation.classifiers import checkpoint_path, evaluate_shipped
+
+    if not all(checkpoint_path(t).exists() for t in ("action", "style")):
+        return "\nclassifier accuracy: n/a (checkpoints missing)"
+    rows = ["", "| classifier (held-out subjects) | accuracy |", "|---|---:|"]
+    rows += [f"| {task} | {acc:.3f} |" for task, acc in evaluate_shipped().items()]
+    return "\n".join(rows)
 
 
 if __name__ == "__main__":
