@@ -43,6 +43,7 @@ Differs from the paper:
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,7 +56,8 @@ from course_lib.skeleton import Skeleton, forward_kinematics
 
 __all__ = ["AdversarialSchedule", "Discriminator", "HistoryBuffer", "Refiner", "RefinerConfig",
            "discriminator_loss", "end_effector_features", "foot_lock", "local_positions",
-           "refiner_adversarial_loss", "refiner_loss", "root_regularisation", "root_trajectory"]
+           "refiner_adversarial_loss", "refiner_loss", "root_regularisation", "root_trajectory",
+           "train_refiner"]
 
 
 @dataclass
@@ -394,3 +396,132 @@ def foot_lock(positions, contacts, skeleton: Skeleton | None = None, threshold: 
             cur[..., [0, 2]] = np.where(hold[..., None, None], xz, cur[..., [0, 2]])
             pos[..., t, joints, :] = cur
     return pos
+
+
+# ----------------------------------------------------------------------------- adversarial training loop (sec. 4.2.2)
+
+
+def _draw(sample, name: str, dim: int, min_n: int) -> torch.Tensor:
+    """Call a batch-making callable -> (N, T, dim) finite float tensor, N >= min_n (else a clear error)."""
+    x = torch.as_tensor(sample(), dtype=torch.float32)
+    if x.ndim != 3 or x.shape[-1] != dim or len(x) < min_n:
+        raise ValueError(f"{name}() must return (N >= {min_n}, T, {dim}) normalised features, got {tuple(x.shape)}")
+    if not torch.isfinite(x).all():
+        raise ValueError(f"{name}() returned NaN or inf")
+    return x
+
+
+def _d_accuracy(real_logits: torch.Tensor, fake_logits: torch.Tensor) -> tuple[float, float]:
+    """(N,), (M,) logits -> fraction of real motions called real, fraction of refined ones called fake."""
+    return float((real_logits > 0).float().mean()), float((fake_logits < 0).float().mean())
+
+
+def _refiner_step(refiner, discriminator, opt_r, x: torch.Tensor, lam: float, adversarial: bool) -> dict:
+    """One R update on x (N, T, D): eq. (13) if adversarial, else only lambda ||root(x) - root(R(x))||^2."""
+    refined = refiner(x)
+    if adversarial:
+        logits = discriminator.logits(*refiner.end_effectors(refined))
+        terms = refiner_loss(logits, refiner.raw(x), refiner.raw(refined), lam)
+    else:  # warm-up: the self-regularisation term of eq. (13) alone (SimGAN's refiner pre-training)
+        reg = root_regularisation(refiner.raw(x), refiner.raw(refined))
+        terms = {"loss": lam * reg, "adversarial": torch.tensor(float("nan")), "root": reg.detach()}
+    if not torch.isfinite(terms["loss"]):
+        raise FloatingPointError(f"refiner loss is {float(terms['loss'])}")
+    opt_r.zero_grad(set_to_none=True)
+    terms["loss"].backward()
+    opt_r.step()
+    return {k: float(v.detach()) for k, v in terms.items()}
+
+
+def _discriminator_step(refiner, discriminator, opt_d, buffer: HistoryBuffer, x: torch.Tensor,
+                        real: torch.Tensor, half: int) -> dict:
+    """One D update (eq. 10): real (N, T, D) vs b/2 refined now + b/2 from the buffer; then refresh the buffer."""
+    with torch.no_grad():
+        current = refiner(x[:half])  # (b/2, T, D), no gradient to R
+        fake = buffer.discriminator_batch(current)  # (b, T, D)
+        p_fake, v_fake = refiner.end_effectors(fake)
+        p_real, v_real = refiner.end_effectors(real)
+    l_real, l_fake = discriminator.logits(p_real, v_real), discriminator.logits(p_fake, v_fake)
+    loss = discriminator_loss(l_real, l_fake)
+    if not torch.isfinite(loss):
+        raise FloatingPointError(f"discriminator loss is {float(loss)}")
+    opt_d.zero_grad(set_to_none=True)
+    loss.backward()
+    opt_d.step()
+    buffer.replace(current)  # b/2 random entries <- the newest refined motions (sec. 4.2.2)
+    acc_real, acc_fake = _d_accuracy(l_real.detach(), l_fake.detach())
+    return {"d_loss": float(loss.detach()), "d_acc_real": acc_real, "d_acc_fake": acc_fake}
+
+
+def _fill_buffer(refiner, sample_rnn_batch, buffer: HistoryBuffer, dim: int) -> None:
+    """Generate B refined motions with the initial R ("we generate B fake data in the very beginning")."""
+    chunks, n = [], 0
+    with torch.no_grad():
+        while n < buffer.capacity:
+            chunks.append(refiner(_draw(sample_rnn_batch, "sample_rnn_batch", dim, 1)))
+            n += len(chunks[-1])
+    buffer.fill(torch.cat(chunks)[: buffer.capacity])
+
+
+def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_batch, sample_real_batch, *,
+                  iterations: int, config: RefinerConfig | None = None, schedule: AdversarialSchedule | None = None,
+                  generator: torch.Generator | None = None, seed: int = 0, progress: bool = True):
+    """Adversarial training of R and D, sec. 4.2.2 -> a training.History.
+
+    sample_rnn_batch() -> (N, T, D) normalised x_RNN, sample_real_batch() -> (N', T, D) normalised
+    mocap windows (N >= b/2, N' >= 1; the same normalisation as ``refiner.mean/std``).
+    Recipe: fill the HistoryBuffer with B refined motions; warm-up: ``schedule.warmup`` R updates on the
+    self-regularisation term of eq. (13), then as many D updates (eq. 10); then ``iterations`` rounds,
+    each of r R updates (eq. 13) and one D update, with r adapted by ``schedule.record(d_loss)``.
+    Every D batch is b/2 current refined motions + b/2 from the buffer, then b/2 buffer entries are
+    replaced.  RMSProp, lr ``config.lr_refiner`` / ``config.lr_discriminator``, alpha ``config.rmsprop_decay``.
+
+    History.step, one value per round: "loss" (R's eq. 13 loss, mean over the round's R updates),
+    "adversarial", "root", "d_loss", "d_acc_real", "d_acc_fake" (D's loss and accuracies on the batch of
+    its update) and "r_updates" (the r used in that round).  ``history.warmup`` is a History with one
+    value per warm-up update: "loss" (R's lambda * root term), "root", "d_loss", "d_acc_real", "d_acc_fake".
+    """
+    from tqdm.auto import tqdm
+
+    from course_lib.training import History
+
+    c = config or refiner.config
+    if not isinstance(iterations, int) or iterations < 0:
+        raise ValueError(f"iterations must be an int >= 0, got {iterations!r}")
+    schedule = schedule or AdversarialSchedule.from_config(c)
+    generator = generator or torch.Generator().manual_seed(int(seed))
+    buffer = HistoryBuffer(c.buffer_size, generator)
+    half = c.d_batch // 2
+    opt_r = torch.optim.RMSprop(refiner.parameters(), lr=c.lr_refiner, alpha=c.rmsprop_decay)
+    opt_d = torch.optim.RMSprop(discriminator.parameters(), lr=c.lr_discriminator, alpha=c.rmsprop_decay)
+
+    def rnn() -> torch.Tensor:
+        return _draw(sample_rnn_batch, "sample_rnn_batch", c.dim, half)
+
+    def real() -> torch.Tensor:
+        return _draw(sample_real_batch, "sample_real_batch", c.dim, 1)
+
+    history, warm, start = History(), History(), time.perf_counter()
+    history.warmup = warm
+    refiner.train()
+    discriminator.train()
+    _fill_buffer(refiner, sample_rnn_batch, buffer, c.dim)
+    n_r, n_d = schedule.next_round() if schedule.warmup > 0 else (0, 0)
+    for _ in range(n_r):  # warm-up of R: self-regularisation only
+        t = _refiner_step(refiner, discriminator, opt_r, rnn(), c.lam, adversarial=False)
+        warm.log_step({"loss": t["loss"], "root": t["root"]})
+    for _ in range(n_d):  # warm-up of D: real vs refined
+        warm.log_step(_discriminator_step(refiner, discriminator, opt_d, buffer, rnn(), real(), half))
+    bar = dict(desc="refiner GAN") if progress else dict(disable=True)  # TQDM_DISABLE=1 is honoured
+    for _ in tqdm(range(iterations), **bar):
+        n_r, n_d = schedule.next_round()
+        steps = [_refiner_step(refiner, discriminator, opt_r, rnn(), c.lam, adversarial=True) for _ in range(n_r)]
+        logs = {k: float(np.mean([s[k] for s in steps])) for k in ("loss", "adversarial", "root")}
+        for _ in range(n_d):
+            logs.update(_discriminator_step(refiner, discriminator, opt_d, buffer, rnn(), real(), half))
+        logs["r_updates"] = n_r
+        schedule.record(logs["d_loss"])
+        history.log_step(logs)
+    history.end_epoch()
+    history.seconds = time.perf_counter() - start
+    return history
