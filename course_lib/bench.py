@@ -12,12 +12,10 @@ such a function here.  Importing this module runs nothing.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import statistics
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 WARMUP = 3  # untimed calls before timing (JIT compilation, allocator warm-up)
 FK_SHAPE = (64, 240)  # batch x frames of the forward-kinematics benchmarks (x 21 joints)
@@ -80,24 +78,15 @@ def _fk_jax():
     return lambda: forward_kinematics(q, root, off, sk.parents)[0].block_until_ready()
 
 
-def _cmu_clip() -> Path | None:
-    """../shared/data/cmu_07_01_walk.bvh beside the repository (or one of its parents), if present."""
-    here = Path(__file__).resolve().parent
-    for folder in here.parents:
-        path = folder / "shared" / "data" / "cmu_07_01_walk.bvh"
-        if path.is_file():
-            return path
-    return None
-
-
 @register("read_bvh cmu_07_01_walk")
 def _read_bvh():
-    if importlib.util.find_spec("course_lib.bvh") is None:
-        return None  # no reader yet: the row says so
-    from course_lib.bvh import CMU_SCALE, read_bvh
+    from course_lib.bvh import CMU_SCALE, cmu_sample_path, read_bvh
 
-    path = _cmu_clip()
-    return None if path is None else (lambda: read_bvh(path, CMU_SCALE))
+    try:
+        path = cmu_sample_path()
+    except FileNotFoundError:
+        return None  # no ../shared beside this checkout: the row says so
+    return lambda: read_bvh(path, CMU_SCALE)
 
 
 @register("action classifier features 64x60x90 (FID/IS)")

@@ -43,6 +43,17 @@ from course_lib.rotations import euler_to_quat, quat_conjugate, quat_mul, quat_r
 from course_lib.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, Skeleton, forward_kinematics
 
 CMU_SCALE = 0.056444  # CMU BVH length unit -> metres
+CMU_SAMPLE = Path("shared") / "data" / "cmu_07_01_walk.bvh"  # the course's real clip, beside the repository
+
+
+def cmu_sample_path(start: str | os.PathLike | None = None) -> Path:
+    """Path of the course's real CMU walk (``../shared/data/cmu_07_01_walk.bvh``), looked for in
+    `start` (default: the current folder), the folder holding course_lib, and every folder above them."""
+    for origin in (Path(start or Path.cwd()).resolve(), Path(__file__).resolve().parent):
+        for folder in (origin, *origin.parents):
+            if (folder / CMU_SAMPLE).is_file():
+                return folder / CMU_SAMPLE
+    raise FileNotFoundError(f"{CMU_SAMPLE} not found above {Path(start or Path.cwd())} or {Path(__file__).parent}")
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = ("Xrotation", "Yrotation", "Zrotation")
 _NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")

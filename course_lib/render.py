@@ -440,7 +440,7 @@ def render_gif(x, path=None, fps: float | None = None, stride: int = 1, parents=
     fps = fps or (tracks[0].clip.fps / stride if tracks[0].clip.fps else 30.0)
     scene = _Scene(tracks, frames, size, view, **{**_STYLE, "trajectory": trajectory, **style}, follow=follow)
     try:
-        images = [scene.draw(f) for f in tqdm(frames, desc="render_gif", disable=not progress)]
+        images = [scene.draw(f) for f in tqdm(frames, desc="render_gif", **({} if progress else dict(disable=True)))]
     finally:
         scene.close()
     return _write_gif(images, fps, path)

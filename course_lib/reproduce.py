@@ -68,7 +68,8 @@ def generate_clips(spec: DataSpec, progress: bool = True) -> list[Motion]:
 
     subjects = make_subjects(spec.n_subjects, spec.seed)
     clips, redrawn = [], 0
-    for i in tqdm(range(spec.n_clips), desc="clips", disable=not progress):
+    bar = {} if progress else dict(disable=True)  # an empty dict lets TQDM_DISABLE=1 apply
+    for i in tqdm(range(spec.n_clips), desc="clips", **bar):
         for attempt in range(20):
             try:
                 m = generate_locomotion(subjects[i % spec.n_subjects], None, duration=(spec.length + 1) / spec.fps,

@@ -17,6 +17,7 @@ from course_lib.bvh import (
     CMU_SCALE,
     CMU_TO_CANONICAL,
     BVHError,
+    cmu_sample_path,
     map_to_canonical,
     parse_bvh,
     read_bvh,
@@ -33,6 +34,11 @@ ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
 @pytest.fixture(scope="module")
 def cmu(cmu_bvh_path) -> Motion:
     return read_bvh(cmu_bvh_path, scale=CMU_SCALE)
+
+
+def test_cmu_sample_path_finds_the_shared_clip(cmu_bvh_path, tmp_path):
+    assert cmu_sample_path() == cmu_bvh_path.resolve()
+    assert cmu_sample_path(tmp_path) == cmu_bvh_path.resolve()  # falls back to the package's own location
 
 
 def _pos(m: Motion, name: str) -> np.ndarray:
