@@ -2,6 +2,7 @@
 
     python -m course_lib.reproduce vae_lstm              # data, train every model, tables -> JSON
     python -m course_lib.reproduce vae_lstm --eval-only  # tables from checkpoints/ only
+    python -m course_lib.reproduce gmm_rnn [--eval-only]  # lesson 03, course_lib/experiments/gmm_rnn.py
 
 Each lesson registers one entry in ``EXPERIMENTS`` (name -> (train_fn, eval_fn)); other lessons
 add theirs the same way.  Nothing runs at import time.
@@ -312,7 +313,19 @@ def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
 
 # ----------------------------------------------------------------------------- the command line
 
-EXPERIMENTS = {"vae_lstm": (train_vae_lstm, eval_vae_lstm)}
+def _lazy(module: str, name: str):
+    """A function that imports course_lib.<module> only when called (lesson modules import this one)."""
+    def call(**kw):
+        import importlib
+
+        return getattr(importlib.import_module(f"course_lib.{module}"), name)(**kw)
+
+    call.__name__ = name
+    return call
+
+
+EXPERIMENTS = {"vae_lstm": (train_vae_lstm, eval_vae_lstm),
+               "gmm_rnn": (_lazy("experiments.gmm_rnn", "train_gmm_rnn"), _lazy("experiments.gmm_rnn", "eval_gmm_rnn"))}
 
 
 def main(argv=None) -> int:

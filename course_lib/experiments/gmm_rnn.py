@@ -1,0 +1,351 @@
+"""Lesson 03 (Wang, Chai et al. 2021): the contact-aware GMM-RNN, its adversarial refiner, and the
+stand-in for the paper's user study (Fig. 12).
+
+    python -m course_lib.reproduce gmm_rnn              # data, RNN, GAN1/GAN2 x 3 seeds, evaluation -> JSON
+    python -m course_lib.reproduce gmm_rnn --eval-only  # the evaluation from checkpoints/ only
+
+Data: lesson 02's synthetic locomotion clips (course_lib.reproduce.DataSpec: 400 clips of 4 s, 10
+subjects, 3 held out) resampled to 30 fps and encoded as ``state_features`` (eq. 3 + 2 contact bits).
+Models: the GMM-RNN (sec. 4.1), GAN1 (refiner without contact awareness) and GAN2 (contact-aware
+refiner, sec. 4.3), each refiner trained for three seeds.  Evaluation: for every held-out clip the RNN
+continues its first two frames for 4 s; GAN1/GAN2 refine that motion; "GAN2 + foot lock" adds the
+contact clean-up.  Rows Mocap / RNN / GAN1 / GAN2 get foot skate, jitter, FID, IS and the two-sample
+accuracy against the held-out mocap.  Long generation: 100 motions of 20 s from one start frame.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from course_lib.datasets import WindowDataset, load_stats
+from course_lib.motion import Motion
+from course_lib.representations import decode_state_features, root_start
+
+ROOT = Path(__file__).resolve().parents[2]
+CHECKPOINTS = ROOT / "checkpoints"
+ROWS = ("Mocap", "RNN", "GAN1", "GAN2", "GAN2 + foot lock")
+COMMAND = "python -m course_lib.reproduce gmm_rnn"
+
+
+@dataclass
+class Lesson03Spec:
+    """Every setting of the lesson-03 reproduction (sizes are the CPU ones, see the notebook's table)."""
+
+    fps: float = 30.0  # sec. 4.1.3
+    rnn_steps: int = 4000  # 50-frame windows, batch 20 (sec. 4.1.3); ~10 epochs of the training windows
+    window_stride: int = 5  # frames between training windows
+    refiner_window: int = 64  # frames per refiner/discriminator training sequence
+    refiner_iterations: int = 300  # adversarial rounds after the warm-up (sec. 4.2.2)
+    max_r_updates: int = 40  # cap on R's adaptive update count per round (the paper has none)
+    pool_sequences: int = 320  # RNN motions generated once for refiner training
+    pool_frames: int = 240  # frames per pooled RNN motion (8 s)
+    seeds: tuple = (0, 1, 2)  # refiner seeds; the checkpoints are seed seeds[0]
+    eval_seconds: float = 4.0  # generated length compared with the 4-s held-out clips
+    n_random: int = 100  # long-generation test
+    random_seconds: float = 20.0
+    data_seed: int = 2017  # lesson 02's DataSpec seed
+    extra: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- data
+
+
+def lesson03_data(spec: Lesson03Spec, progress: bool = True) -> tuple[list[Motion], list[Motion], WindowDataset]:
+    """-> (train clips, held-out clips) at spec.fps and the training WindowDataset (50-frame windows,
+    mirrored clips added, normalisation from the training split)."""
+    from course_lib.reproduce import DataSpec, load_clips
+
+    data = DataSpec(seed=spec.data_seed)
+    clips = [m.resample(spec.fps) for m in load_clips(data, progress=progress)]
+    test = [m for m in clips if m.subject in data.test_subjects]
+    train = [m for m in clips if m.subject not in data.test_subjects]
+    ds = WindowDataset(train, "state_features", length=50, stride=spec.window_stride, mirror=True)
+    return train, test, ds
+
+
+def window_sampler(features: list[np.ndarray], length: int, batch: int, generator: torch.Generator):
+    """features: normalised (T_i, D) arrays -> a callable returning (batch, length, D) random windows."""
+    feats = [torch.from_numpy(np.asarray(f, np.float32)) for f in features if len(f) >= length]
+    if not feats:
+        raise ValueError(f"window_sampler: no sequence has {length} frames")
+
+    def sample() -> torch.Tensor:
+        idx = torch.randint(len(feats), (batch,), generator=generator)
+        out = []
+        for i in idx.tolist():
+            s = int(torch.randint(len(feats[i]) - length + 1, (1,), generator=generator))
+            out.append(feats[i][s:s + length])
+        return torch.stack(out)
+
+    return sample
+
+
+# ----------------------------------------------------------------------------- training
+
+
+def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int | None = None, progress: bool = True):
+    """The GMM-RNN of sec. 4.1 on ds's windows -> (model, History).  RMSProp lr 1e-3 x 0.95 per epoch."""
+    from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
+    from course_lib.training import fit
+
+    config = GmmRnnConfig.cpu(fps=spec.fps)
+    torch.manual_seed(seed)
+    model = GmmRnn(config)
+    sample = window_sampler(ds.features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
+    steps_per_epoch = max(1, len(ds) // config.batch_size)
+    hist = fit(model, sample, steps=steps or spec.rnn_steps, epochs=None, lr=config.lr, optimizer="rmsprop",
+               lr_schedule=config.lr_factor, steps_per_epoch=steps_per_epoch, progress=progress, seed=seed,
+               desc="GMM-RNN")
+    model.eval()
+    return model, hist
+
+
+def start_frames(features: list[np.ndarray], n: int, generator: torch.Generator) -> torch.Tensor:
+    """n random pairs of consecutive normalised frames -> (n, 2, D) initial frames (sec. 4.1.4)."""
+    return window_sampler(features, 2, n, generator)()
+
+
+def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> torch.Tensor:
+    """spec.pool_sequences RNN motions of spec.pool_frames frames from random training frames -> (N, T, D)."""
+    g = torch.Generator().manual_seed(seed)
+    x0 = start_frames(ds.features, spec.pool_sequences, g)
+    return model.generate(x0, spec.pool_frames - 2, generator=g, stats=ds.stats)
+
+
+def train_gan(pool: torch.Tensor, ds: WindowDataset, spec: Lesson03Spec, contacts: bool, seed: int,
+              iterations: int | None = None, progress: bool = True):
+    """R and D of sec. 4.2 on random spec.refiner_window-frame crops of the RNN pool vs mocap windows
+    -> (refiner, discriminator, History).  contacts=False is GAN1, True GAN2 (sec. 4.3)."""
+    from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
+
+    config = RefinerConfig.cpu(contacts=contacts, fps=spec.fps)
+    torch.manual_seed(seed)
+    refiner, disc = Refiner(config, stats=ds.stats), Discriminator(config)
+    g = torch.Generator().manual_seed(seed)
+    rnn = window_sampler(list(pool.numpy()), spec.refiner_window, config.d_batch, g)
+    real = window_sampler(ds.features, spec.refiner_window, config.d_batch, g)
+    schedule = AdversarialSchedule(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high,
+                                   max_r_updates=spec.max_r_updates)
+    hist = train_refiner(refiner, disc, rnn, real, iterations=spec.refiner_iterations if iterations is None
+                         else iterations, config=config, schedule=schedule, generator=g, progress=progress)
+    hist.r_schedule = list(schedule.history)
+    refiner.eval()
+    disc.eval()
+    return refiner, disc, hist
+
+
+# ----------------------------------------------------------------------------- generation and evaluation
+
+
+def to_motions(features: torch.Tensor, stats, like: list[Motion], fps: float) -> list[Motion]:
+    """Normalised features (N, T, D) -> Motions, motion i decoded on like[i]'s skeleton from its start."""
+    raw = features.double().numpy() * stats[1] + stats[0]
+    return [decode_state_features(f, m.skeleton, fps, root_start(m)) for f, m in zip(raw, like, strict=True)]
+
+
+def locked(motions: list[Motion], features: torch.Tensor, stats) -> np.ndarray:
+    """The foot-lock clean-up (sec. 4.3) on motions, driven by the predicted contact bits -> (N, T, J, 3)."""
+    from course_lib.models.refiner import foot_lock
+
+    contacts = features[..., -2:].double().numpy() * stats[1][-2:] + stats[0][-2:]
+    return np.stack([foot_lock(m.positions(), c, m.skeleton) for m, c in zip(motions, contacts, strict=True)])
+
+
+def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesson03Spec, seed: int = 0) -> dict:
+    """For each clip: the RNN continues its first two frames for spec.eval_seconds; each refiner refines
+    that -> {"RNN": features, name: features, ...} normalised (N, T, D)."""
+    T = int(round(spec.eval_seconds * spec.fps))
+    x0 = torch.from_numpy(np.stack([(_features(m)[:2] - stats[0]) / stats[1] for m in clips])).float()
+    out = {"RNN": model.generate(x0, T - 2, generator=torch.Generator().manual_seed(seed), stats=stats)}
+    with torch.no_grad():
+        out.update({name: r(out["RNN"]) for name, r in refiners.items()})
+    return out
+
+
+def _features(m: Motion) -> np.ndarray:
+    from course_lib.representations import encode_state_features
+
+    return encode_state_features(m)
+
+
+def quality_row(motions, mocap: list[Motion], positions: np.ndarray | None = None, fps: float = 30.0,
+                seed: int = 0) -> dict:
+    """Foot skate (m/s), jitter (m/s^3), FID, IS and two-sample accuracy of a set against mocap.
+
+    positions (N, T, J, 3): measure skate and jitter on these (the foot-locked joints) instead of the
+    motions' own; the classifier metrics always use the motions (the clean-up moves only the feet)."""
+    from course_lib.evaluation import fid, foot_skate, inception_score, jitter, two_sample_accuracy
+
+    pos = positions if positions is not None else np.stack([m.positions() for m in motions])
+    return {"foot_skate": foot_skate(pos, fps=fps), "jitter": jitter(pos, fps=fps),
+            "fid": fid(mocap, motions), "is": inception_score(motions),
+            "two_sample": two_sample_accuracy(mocap, motions, seed=seed)}
+
+
+def quality_table(model, refiners: dict, test: list[Motion], stats, spec: Lesson03Spec, seed: int = 0) -> dict:
+    """The Fig. 12 stand-in: {row: quality_row} for ROWS (refiners: {"GAN1": R1, "GAN2": R2}).
+
+    Generated rows are measured against all held-out clips; the Mocap row is a random half of them
+    against the other half (the best a set of that size can score: FID > 0, two-sample ~0.5)."""
+    T = int(round(spec.eval_seconds * spec.fps))
+    mocap = [m[:T] for m in test]
+    sets = continuations(model, refiners, test, stats, spec, seed)
+    half = np.random.default_rng(seed).permutation(len(mocap))
+    a, b = [mocap[i] for i in half[: len(half) // 2]], [mocap[i] for i in half[len(half) // 2:]]
+    rows = {"Mocap": quality_row(b, a, fps=spec.fps, seed=seed)}  # one half of the clips against the other
+    for name, feats in sets.items():
+        motions = to_motions(feats, stats, test, spec.fps)
+        rows[name] = quality_row(motions, mocap, fps=spec.fps, seed=seed)
+        if name == "GAN2":
+            rows["GAN2 + foot lock"] = quality_row(motions, mocap, locked(motions, feats, stats), spec.fps, seed)
+    return rows
+
+
+def freeze_floor(mocap: list[Motion]) -> float:
+    """The freezing threshold: a tenth of the smallest per-clip variance over time of the mean joint
+    speed among the mocap clips, (m/s)^2."""
+    return 0.1 * float(min(joint_speed(m.positions(), m.fps).var() for m in mocap))
+
+
+def joint_speed(positions: np.ndarray, fps: float) -> np.ndarray:
+    """positions (..., T, J, 3) -> mean joint speed per frame (..., T-1), m/s, root motion included."""
+    return np.linalg.norm(np.diff(positions, axis=-3), axis=-1).mean(-1) * fps
+
+
+def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mocap: list[Motion],
+                    seed: int = 0) -> dict:
+    """spec.n_random motions of spec.random_seconds from start's first two frames, RNN and refined.
+
+    -> per set: NaN count, root-height range vs the mocap's, freezing (motions whose last-5-s joint-speed
+    variance is under `freeze_floor`), APD (m) over the whole motion and the features (for plots)."""
+    T = int(round(spec.random_seconds * spec.fps))
+    x0 = torch.from_numpy((_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
+    rnn = model.generate(x0.contiguous(), T - 2, generator=torch.Generator().manual_seed(seed), stats=stats)
+    with torch.no_grad():
+        sets = {"RNN": rnn, "GAN2": refiner(rnn)}
+    heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
+    floor, last = freeze_floor(mocap), int(5 * spec.fps)
+    out = {"data_root_height": [float(heights.min()), float(heights.max())], "freeze_floor": floor, "frames": T}
+    for name, feats in sets.items():
+        nan = int((~torch.isfinite(feats)).any(-1).any(-1).sum())
+        motions = to_motions(feats, stats, [start] * len(feats), spec.fps)
+        pos = np.stack([m.positions() for m in motions])  # (N, T, J, 3)
+        h = pos[:, :, 0, 1]
+        var = joint_speed(pos[:, -last:], spec.fps).var(-1)  # (N,)
+        from course_lib.evaluation import apd
+
+        out[name] = {"nan_motions": nan, "root_height": [float(h.min()), float(h.max())],
+                     "frozen": int((var < floor).sum()), "min_speed_var": float(var.min()),
+                     "apd_m": apd(pos)}
+    return out
+
+
+# ----------------------------------------------------------------------------- checkpoints and the commands
+
+
+def _stats_path(checkpoints: Path) -> Path:
+    return checkpoints / "gmm_rnn_stats.npz"
+
+
+def load_models(checkpoints: Path = CHECKPOINTS) -> tuple:
+    """-> (GMM-RNN, {"GAN1": refiner, "GAN2": refiner}, stats) from checkpoints/."""
+    from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
+    from course_lib.models.refiner import Refiner, RefinerConfig
+    from course_lib.training import load_checkpoint
+
+    model = load_checkpoint(checkpoints / "gmm_rnn.pt", GmmRnn, GmmRnnConfig)
+    refiners = {name: load_checkpoint(checkpoints / f"refiner_{name.lower()}.pt", Refiner, RefinerConfig)
+                for name in ("GAN1", "GAN2")}
+    return model, refiners, load_stats(_stats_path(checkpoints), "state_features")
+
+
+def _rounded(d, digits: int = 6):
+    if isinstance(d, dict):
+        return {str(k): _rounded(v, digits) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_rounded(v, digits) for v in d]
+    return round(d, digits) if isinstance(d, float) else d
+
+
+def evaluate(model, refiners: dict, stats, spec: Lesson03Spec, test: list[Motion], seed: int = 0) -> dict:
+    """The quality table and the long-generation test of one RNN + refiner pair."""
+    t0 = time.perf_counter()
+    out = {"quality": quality_table(model, refiners, test, stats, spec, seed),
+           "long_generation": long_generation(model, refiners["GAN2"], test[0], stats, spec, test, seed)}
+    out["eval_seconds"] = time.perf_counter() - t0
+    return out
+
+
+def eval_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool = True,
+                 checkpoints: Path = CHECKPOINTS) -> dict:
+    """The evaluation from the shipped checkpoints -> JSON-able dict."""
+    spec = spec or Lesson03Spec()
+    _, test, _ = lesson03_data(spec, progress)
+    model, refiners, stats = load_models(checkpoints)
+    return _rounded(evaluate(model, refiners, stats, spec, test, seed))
+
+
+def _gan_summary(hist) -> dict:
+    return {"seconds": hist.seconds, "rounds": hist.num_steps, "final_d_loss": hist.final("d_loss", 20),
+            "final_adversarial": hist.final("adversarial", 20), "final_root": hist.final("root", 20),
+            "final_d_acc_fake": hist.final("d_acc_fake", 20), "max_r_updates_used": max(hist.r_schedule or [0])}
+
+
+def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool = True, only=None,
+                  checkpoints: Path = CHECKPOINTS) -> dict:
+    """Train the RNN, then GAN1 and GAN2 for every seed of spec.seeds; evaluate each seed; save the
+    seed-spec.seeds[0] models (+ stats, + the results in the manifest) -> results dict."""
+    from course_lib.training import save_checkpoint
+
+    spec = spec or Lesson03Spec()
+    t0 = time.perf_counter()
+    train, test, ds = lesson03_data(spec, progress)
+    out = {"spec": asdict(spec), "data_seconds": time.perf_counter() - t0, "train_windows": len(ds),
+           "test_clips": len(test)}
+    model, hist = train_rnn(ds, spec, seed, progress=progress)
+    out["rnn"] = {"seconds": hist.seconds, "steps": hist.num_steps, "final_nll": hist.final("loss", 50)}
+    print(f"GMM-RNN: {hist}", file=sys.stderr)
+    pool = rnn_pool(model, ds, spec, seed)
+    out["per_seed"], kept = {}, None
+    for s in spec.seeds:
+        gans = {name: train_gan(pool, ds, spec, contacts=name == "GAN2", seed=s, progress=progress)
+                for name in ("GAN1", "GAN2")}
+        refiners = {name: g[0] for name, g in gans.items()}
+        res = evaluate(model, refiners, ds.stats, spec, test, seed)
+        res["gan"] = {name: _gan_summary(g[2]) for name, g in gans.items()}
+        out["per_seed"][str(s)] = res
+        print(f"seed {s}: " + ", ".join(f"{k} skate {v['foot_skate']:.3f}" for k, v in res["quality"].items()),
+              file=sys.stderr)
+        kept = kept or gans
+    out["total_seconds"] = time.perf_counter() - t0
+    results = _rounded(out)
+    checkpoints.mkdir(parents=True, exist_ok=True)
+    ds.save_stats(_stats_path(checkpoints))
+    common = {"data_seed": spec.data_seed, "train_seed": seed, "train_windows": len(ds), "test_clips": len(test)}
+    save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=COMMAND, overwrite=True,
+                    metrics={**common, **results["rnn"], "results": results})
+    for name, (refiner, _, hist) in kept.items():
+        save_checkpoint(refiner, refiner.config, checkpoints / f"refiner_{name.lower()}.pt", command=COMMAND,
+                        overwrite=True, metrics={**common, "refiner_seed": spec.seeds[0],
+                                                 **_rounded(_gan_summary(hist)),
+                                                 "history": _rounded(_history_dict(hist), 5)})
+    return results
+
+
+def _history_dict(hist) -> dict:
+    """The GAN training curves kept in the manifest for the notebook's dynamics plot."""
+    keys = ("loss", "adversarial", "root", "d_loss", "d_acc_real", "d_acc_fake", "r_updates")
+    return {k: [float(v) for v in hist.step[k]] for k in keys}
+
+
+def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
+    """The results stored by `train_gmm_rnn` in the GMM-RNN's manifest entry."""
+    import json
+
+    return json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["metrics"]["results"]
