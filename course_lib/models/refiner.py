@@ -372,11 +372,14 @@ class AdversarialSchedule:
 # ----------------------------------------------------------------------------- contact clean-up (sec. 4.3)
 
 
-def foot_lock(positions, contacts, skeleton: Skeleton | None = None, threshold: float = 0.5) -> np.ndarray:
+def foot_lock(positions, contacts, skeleton: Skeleton | None = None, threshold: float = 0.5,
+              blend: int = 4) -> np.ndarray:
     """positions (..., T, J, 3), contacts (..., T, 2) predicted (left, right) -> positions (..., T, J, 3).
 
     While a foot's contact stays above ``threshold``, its ankle and toe keep the horizontal (x, z)
-    position of the first frame of the contact run; heights and other joints are unchanged.
+    position they were shown at on the first frame of the contact run.  When the run ends, the
+    correction fades out linearly over ``blend`` frames, so the foot does not jump back (a jump would
+    be a jerk spike).  Heights and all other joints are unchanged.
     """
     pos = np.array(positions, dtype=np.float64)  # a copy, also of torch tensors
     c = np.asarray(contacts, dtype=np.float64) > threshold
@@ -387,15 +390,37 @@ def foot_lock(positions, contacts, skeleton: Skeleton | None = None, threshold: 
                          f"{pos.shape}, {c.shape}")
     if not np.isfinite(pos).all():
         raise ValueError("foot_lock: positions contain NaN or inf")
+    if int(blend) != blend or blend < 0:
+        raise ValueError(f"foot_lock: blend must be an int >= 0, got {blend!r}")
+    lead, T = pos.shape[:-3], pos.shape[-3]
+    flat, cf = pos.reshape(-1, T, J, 3), c.reshape(-1, T, 2)
     lf, lt, rf, rt = skeleton.feet
-    for side, joints in enumerate(([lf, lt], [rf, rt])):
-        for t in range(1, pos.shape[-3]):
-            hold = c[..., t, side] & c[..., t - 1, side]  # (...,) still in the same contact run
-            xz = pos[..., t - 1, :, :][..., joints, :][..., [0, 2]]  # (..., 2 joints, 2)
-            cur = pos[..., t, :, :][..., joints, :]
-            cur[..., [0, 2]] = np.where(hold[..., None, None], xz, cur[..., [0, 2]])
-            pos[..., t, joints, :] = cur
-    return pos
+    for n in range(len(flat)):
+        for side, joints in enumerate(([lf, lt], [rf, rt])):
+            flat[n][:, joints] = _lock_run(flat[n][:, joints], cf[n, :, side], int(blend))
+    return flat.reshape(*lead, T, J, 3)
+
+
+def _lock_run(feet: np.ndarray, contact: np.ndarray, blend: int) -> np.ndarray:
+    """feet (T, F, 3) of one side, contact (T,) bool -> feet with the locked, blended (x, z) offsets."""
+    xz = feet[..., [0, 2]]  # (T, F, 2)
+    shown = xz.copy()
+    offset = anchor = release = np.zeros(xz.shape[1:])
+    fade = 0
+    for t in range(len(xz)):
+        if contact[t]:
+            if t == 0 or not contact[t - 1]:  # a new run: anchor where the foot is shown now
+                anchor = xz[t] + offset
+            offset, fade, shown[t] = anchor - xz[t], 0, anchor  # shown exactly at the anchor
+            continue
+        if t > 0 and contact[t - 1]:  # the run just ended: fade its offset out
+            release, fade = offset, blend
+        offset = release * (fade / (blend + 1)) if fade > 0 else np.zeros_like(offset)
+        fade = max(fade - 1, 0)
+        shown[t] = xz[t] + offset
+    out = feet.copy()
+    out[..., [0, 2]] = shown
+    return out
 
 
 # ----------------------------------------------------------------------------- adversarial training loop (sec. 4.2.2)
