@@ -325,7 +325,8 @@ def _lazy(module: str, name: str):
 
 
 EXPERIMENTS = {"vae_lstm": (train_vae_lstm, eval_vae_lstm),
-               "gmm_rnn": (_lazy("experiments.gmm_rnn", "train_gmm_rnn"), _lazy("experiments.gmm_rnn", "eval_gmm_rnn"))}
+               "gmm_rnn": (_lazy("experiments.gmm_rnn", "train_gmm_rnn"), _lazy("experiments.gmm_rnn", "eval_gmm_rnn")),
+               "hvrnn": (_lazy("experiments.hvrnn", "train_hvrnn"), _lazy("experiments.hvrnn", "eval_hvrnn"))}
 
 
 def main(argv=None) -> int:

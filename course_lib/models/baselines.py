@@ -13,6 +13,15 @@ jointly.  ``predict(x_init, horizon, control=None)`` rolls them out from initial
   CD-1; the paper's table also lists CD-15) by minimising F(v_data) - F(v_k), whose gradient is the
   CD update, with F(v) = |v - a_t|^2 / 2 - sum_j softplus(b_t + W^T v)_j the free energy.
 
+Lesson 05 (notebooks/05_hierarchical_vrnn.ipynb, Ghorbani et al. 2020 sec. 5.1) adds `AttributeRnn`:
+an ERD and a QuaterNet-style GRU (Pavllo et al. 2019) that generate ``quaternion_root`` poses from
+the attributes (action, style) alone, the learned Gaussian initial state of each attribute
+combination being their only source of randomness; trained with the proposed model's geodesic
+loss (Ghorbani eq. 17, all alpha_k = 1) and unit-norm constraint (eq. 26).  Differs: 1000 units ->
+128 (``AttributeRnnConfig.cpu()``); QuaterNet's loss is on FK positions and it predicts rotations
+residually, here the geodesic angle loss on absolute rotations; its teacher forcing is replaced by
+scheduled sampling growing to ``sample_max``.
+
 Differs from the papers:
 - sizes shrunk for a 2-core CPU: ERD encoder 500-500 -> 128, LSTMs 1000 -> 128, decoder 100 -> 128;
   LSTM-3LR 3 x 1000 -> 3 x 128; cRBM 150 hidden units -> 128 (``*.cpu()`` presets; the defaults
@@ -26,13 +35,26 @@ Differs from the papers:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["CRbm", "CRbmConfig", "Erd", "ErdConfig", "Lstm3lr", "Lstm3lrConfig", "rollout"]
+from course_lib.models.hvrnn import (
+    NUM_ROOT,
+    PoseCoding,
+    check_poses,
+    mlp,
+    normalize_quaternions,
+    reconstruction_loss,
+    unit_norm_loss,
+)
+from course_lib.models.vae import linear_beta
+
+__all__ = ["AttributeRnn", "AttributeRnnConfig", "CRbm", "CRbmConfig", "Erd", "ErdConfig", "Lstm3lr",
+           "Lstm3lrConfig", "rollout"]
 
 
 def _check_seq(x: torch.Tensor, dim: int, name: str) -> None:
@@ -257,3 +279,134 @@ class CRbm(nn.Module):
             return self.gibbs(frame, a, b, self.config.gibbs_steps, generator), hist
 
         return rollout(step, x_init, horizon, control, self.config.control_dim)
+
+
+
+# ----------------------------------------------------------------------------- lesson 05: attribute-driven RNNs
+
+
+@dataclass
+class AttributeRnnConfig:
+    """ERD / QuaterNet-style GRU generating ``quaternion_root`` poses from attributes (Ghorbani et al. 2020,
+    sec. 5.1): the learned Gaussian initial state of each (action, style) is the only randomness."""
+
+    kind: str = "quaternet"  # "quaternet": 2 GRU layers (Pavllo et al. 2019) | "erd": FC encoder, 2 LSTMs, FC decoder
+    num_joints: int = 21  # pose = 4 J + 6 features
+    n_actions: int = 4
+    n_styles: int = 2
+    d_a: int = 8  # attribute features fed every frame
+    hidden: int = 1000  # recurrent width (QuaterNet: 1000; ERD: 1000)
+    encoder: int = 500  # ERD's FC encoder / decoder width
+    distance: str = "d1"  # geodesic of the reconstruction, as the proposed model (Ghorbani eq. 17)
+    rec_weight: float = 10.0  # as HvrnnConfig.rec_weight
+    root_weight: float = 0.1  # weight of the root features' squared error (standardised)
+    input_noise: float = 0.05  # ERD: std of Gaussian noise on the inputs (Fragkiadaki's curriculum, fixed)
+    sample_max: float = 0.3  # QuaterNet: final probability of feeding back its own prediction (scheduled sampling)
+    sample_ramp: int = 2000  # steps from 0 to sample_max
+    lambda_ang: float = 0.1  # unit-norm constraint (Ghorbani eq. 26), as the proposed model
+
+    @classmethod
+    def cpu(cls, **overrides) -> AttributeRnnConfig:
+        """recurrent 1000 -> 128, ERD encoder/decoder 500 -> 128."""
+        return cls(**{"hidden": 128, "encoder": 128, **overrides})
+
+    def __post_init__(self):
+        if self.kind not in ("quaternet", "erd"):
+            raise ValueError(f"kind must be 'quaternet' or 'erd', got {self.kind!r}")
+
+    @property
+    def pose_dim(self) -> int:
+        return 4 * self.num_joints + NUM_ROOT
+
+
+class AttributeRnn(PoseCoding, nn.Module):
+    """x_t = f(x_{t-1}, a, h_{t-1}) with h_0 ~ N(mu_c, sigma_c) learned per attribute combination.
+
+    Raw ``quaternion_root`` poses (N, T, 4J + 6); x_0 is a zero "start" frame, so generation needs
+    no seed frames.  ``loss`` is teacher-forced next-frame geodesic reconstruction (+ input noise for
+    the ERD, scheduled sampling for the QuaterNet-style GRU); ``sample`` rolls out from h_0 and feeds
+    back its own normalised output.
+    """
+
+    def __init__(self, config: AttributeRnnConfig | None = None):
+        super().__init__()
+        self.config = c = config or AttributeRnnConfig()
+        D, H = c.pose_dim, c.hidden
+        self.f_c = nn.Linear(c.n_actions + c.n_styles, c.d_a)
+        if c.kind == "erd":
+            self.encoder = mlp(D + c.d_a, c.encoder, 1, c.encoder)
+            self.rnn = nn.LSTM(c.encoder, H, num_layers=2, batch_first=True)
+            self.decoder = mlp(H, c.encoder, 1, D)
+        else:
+            self.rnn = nn.GRU(D + c.d_a, H, num_layers=2, batch_first=True)
+            self.decoder = nn.Linear(H, D)
+        n_state = (4 if c.kind == "erd" else 2) * H  # (h, c) of two LSTM layers, or h of two GRU layers
+        self.h0_mu = nn.Parameter(torch.zeros(c.n_actions * c.n_styles, n_state))
+        self.h0_logstd = nn.Parameter(torch.full((c.n_actions * c.n_styles, n_state), math.log(0.1)))
+        self.register_buffer("root_mean", torch.zeros(NUM_ROOT))
+        self.register_buffer("root_std", torch.ones(NUM_ROOT))
+        self.register_buffer("step", torch.zeros((), dtype=torch.long))
+
+    def _initial(self, combo: torch.Tensor, generator: torch.Generator | None = None):
+        """h_0 ~ N(mu_c, diag sigma_c^2): (N,) -> the RNN's state ((2, N, H) GRU, or LSTM's (h, c))."""
+        eps = torch.randn(len(combo), self.h0_mu.shape[1], generator=generator)
+        s = self.h0_mu[combo] + self.h0_logstd[combo].exp() * eps
+        layers = s.reshape(len(combo), -1, self.config.hidden).transpose(0, 1).contiguous()  # (2 or 4, N, H)
+        return (layers[:2].contiguous(), layers[2:].contiguous()) if self.config.kind == "erd" else layers
+
+    def _step(self, y_prev: torch.Tensor, a: torch.Tensor, state):
+        """model-space frames (N, T, D), a (N, d_a) -> next frames (N, T, D) (quaternions raw), state."""
+        inp = torch.cat((y_prev, a[:, None].expand(-1, y_prev.shape[1], -1)), -1)
+        h, state = self.rnn(self.encoder(inp) if self.config.kind == "erd" else inp, state)
+        return self.decoder(h), state
+
+    def _teacher_forced(self, prev: torch.Tensor, a: torch.Tensor, state) -> torch.Tensor:
+        """prev (N, T, D) inputs -> outputs (N, T, D): ERD with input noise, QuaterNet with scheduled sampling."""
+        c = self.config
+        if c.kind == "erd":
+            return self._step(prev + c.input_noise * torch.randn_like(prev), a, state)[0]
+        p = linear_beta(int(self.step), c.sample_ramp, c.sample_max)  # P(feed back its own prediction)
+        outs, inp = [], prev[:, :1]
+        for t in range(prev.shape[1]):
+            out, state = self._step(inp, a, state)
+            outs.append(out)
+            if t + 1 < prev.shape[1]:
+                own = torch.rand(len(prev), 1, 1) < p
+                inp = torch.where(own, self.normalized(out.detach()), prev[:, t + 1:t + 2])
+        return torch.cat(outs, 1)
+
+    def normalized(self, y: torch.Tensor) -> torch.Tensor:
+        """model-space frames with their quaternions normalised (QuaterNet's normalisation layer)."""
+        return torch.cat((normalize_quaternions(y[..., :-NUM_ROOT], self.config.num_joints), y[..., -NUM_ROOT:]), -1)
+
+    def loss(self, batch: dict) -> dict:
+        """batch {"x": (N, T, D) raw, "action_id", "style_id"} -> {"loss", "rec", "rec_root", "ang"}."""
+        c, J = self.config, self.config.num_joints
+        x = batch["x"]
+        check_poses(x, c.pose_dim)
+        a, combo = self.attributes(batch["action_id"], batch["style_id"])
+        y = self.to_model(x)
+        prev = torch.cat((torch.zeros_like(y[:, :1]), y[:, :-1]), 1)  # x_0 = 0, then the data
+        y_hat = self._teacher_forced(prev, a, self._initial(combo))
+        q = x[..., :4 * J].unflatten(-1, (J, 4))
+        q_hat = self.from_model(y_hat)[..., :4 * J].unflatten(-1, (J, 4))
+        rec = reconstruction_loss(q, q_hat, torch.ones(J), c.distance).mean()
+        rec_root = (y_hat[..., -NUM_ROOT:] - y[..., -NUM_ROOT:]).pow(2).sum(-1).mean()
+        ang = unit_norm_loss(y_hat[..., :4 * J].unflatten(-1, (J, 4))).mean()
+        if self.training:
+            self.step += 1
+        total = c.rec_weight * (rec + c.root_weight * rec_root) + c.lambda_ang * ang
+        return {"loss": total, "rec": rec, "rec_root": rec_root, "ang": ang}
+
+    @torch.no_grad()
+    def sample(self, action, style, frames: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        """action (N,), style (N,) ids -> raw poses (N, frames, D); the only randomness is h_0."""
+        if frames < 1:
+            raise ValueError(f"frames must be >= 1, got {frames}")
+        a, combo = self.attributes(action, style)
+        state, inp, outs = self._initial(combo, generator), torch.zeros(len(a), 1, self.config.pose_dim), []
+        for _ in range(frames):
+            out, state = self._step(inp, a, state)
+            inp = self.normalized(out)
+            outs.append(inp)
+        return self.from_model(torch.cat(outs, 1))

@@ -1,0 +1,271 @@
+"""Hierarchical VRNN (Ghorbani et al. 2020), its loss pieces, baselines and lesson-05 evaluation helpers."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.models.baselines import AttributeRnn, AttributeRnnConfig
+from course_lib.models.hvrnn import (
+    DaeConfig,
+    DenoisingAutoencoder,
+    HierarchicalVrnn,
+    HvrnnConfig,
+    cl_weight,
+    diag_gaussian_kl,
+    geodesic,
+    impact_factors,
+    kl_weight,
+    normalize_pose,
+    unit_norm_loss,
+    word_drop_rate,
+)
+from course_lib.rotations import axis_angle_to_quat
+from course_lib.skeleton import Skeleton
+
+torch.set_num_threads(1)
+TINY = dict(gru=16, mlp=16, d_w=8, d_z=4, d_a=4, enc_layers=1)
+
+
+def tiny(**kw) -> HierarchicalVrnn:
+    torch.manual_seed(0)
+    return HierarchicalVrnn(HvrnnConfig(**{**TINY, **kw}))
+
+
+def poses(n=4, t=12, seed=0) -> torch.Tensor:
+    g = torch.Generator().manual_seed(seed)
+    return normalize_pose(torch.randn(n, t, 90, generator=g)).float()
+
+
+def batch(n=4, t=12):
+    return {"x": poses(n, t), "action_id": torch.arange(n) % 4, "style_id": torch.arange(n) % 2}
+
+
+# ----------------------------------------------------------------------------- formulas
+
+
+def test_impact_factors_hand_computed_tree():
+    # root -> A (bone 1) -> B (bone 2, end site 0.5);  root -> C (bone 3, no end site)
+    skel = Skeleton(("root", "A", "B", "C"), (-1, 0, 1, 0),
+                    np.array([[0, 0, 0], [0, 1, 0], [0, 2, 0], [3, 0, 0]], float), {2: np.array([0.0, 0.5, 0.0])})
+    # alpha_B = 0.5, alpha_A = 0.5 + 2, alpha_C = 0, alpha_root = max(2.5 + 1, 0 + 3) = 3.5   (eq. 23)
+    np.testing.assert_allclose(impact_factors(skel, normalize=False), [3.5, 2.5, 0.5, 0.0])
+    np.testing.assert_allclose(impact_factors(skel), np.array([3.5, 2.5, 0.5, 0.0]) / 1.625)
+
+
+def test_impact_factors_canonical_decrease_down_the_tree():
+    skel = Skeleton.canonical()
+    alpha = impact_factors(skel)
+    assert alpha.mean() == pytest.approx(1.0)
+    for j, p in enumerate(skel.parents):
+        if p >= 0:
+            assert alpha[j] < alpha[p], skel.names[j]
+    # Hips: the longest path is Hips -> Spine -> Spine1 -> shoulder -> arm -> forearm -> hand -> end site
+    raw = impact_factors(skel, normalize=False)
+    assert raw[0] == pytest.approx(0.11 + 0.19 + math.hypot(0.035, 0.17) + 0.14 + 0.28 + 0.25 + 0.09)
+
+
+def test_geodesic_distances_against_the_true_angle():
+    axis = torch.tensor([[0.0, 1.0, 0.0]])
+    for angle in (0.3, 1.2, 2.9):
+        q = axis_angle_to_quat(axis, torch.tensor([angle]))
+        qi = torch.tensor([[1.0, 0, 0, 0]])
+        assert geodesic(qi, q, "d1").item() == pytest.approx(angle, abs=1e-5)
+        assert geodesic(qi, -q, "d1").item() == pytest.approx(angle, abs=1e-5)  # double cover, eq. (17)
+        assert geodesic(qi, q, "log").item() == pytest.approx(angle, abs=1e-4)  # eq. (21)
+        assert geodesic(qi, q, "d2").item() == pytest.approx(1 - math.cos(angle / 2), abs=1e-6)  # eq. (18)
+
+
+def test_diag_gaussian_kl_matches_torch_distributions():
+    g = torch.Generator().manual_seed(1)
+    mq, mp = torch.randn(5, 3, generator=g), torch.randn(5, 3, generator=g)
+    sq, sp = torch.rand(5, 3, generator=g) + 0.2, torch.rand(5, 3, generator=g) + 0.2
+    ref = torch.distributions.kl_divergence(torch.distributions.Normal(mq, sq), torch.distributions.Normal(mp, sp))
+    torch.testing.assert_close(diag_gaussian_kl(mq, sq, mp, sp), ref.sum(-1))
+
+
+def test_schedules():
+    assert [kl_weight(s, 10, 20) for s in (0, 9, 10, 20, 30, 100)] == [0, 0, 0, 0.5, 1.0, 1.0]
+    assert [cl_weight(s, 10, 20, 0.1) for s in (0, 10, 20, 30, 99)] == pytest.approx([0, 0, 0.05, 0.1, 0.1])
+    assert word_drop_rate(250, 500, 0.3) == pytest.approx(0.15)
+    assert word_drop_rate(10_000, 500, 0.3) == pytest.approx(0.3)
+
+
+def test_unit_norm_loss():
+    q = torch.tensor([[[2.0, 0, 0, 0], [0.0, 1, 0, 0]]])  # |q|^2 = 4 and 1
+    assert unit_norm_loss(q).item() == pytest.approx(3.0)  # eq. (26)
+
+
+# ----------------------------------------------------------------------------- the model
+
+
+@pytest.mark.parametrize("hierarchical", [True, False])
+def test_shapes_of_every_piece(hierarchical):
+    m = tiny(hierarchical=hierarchical)
+    x = poses()
+    y = m.to_model(x)
+    w = m.words(y)
+    L = 3 if hierarchical else 1
+    assert w.shape == (4, 12 // L, 8 if hierarchical else 90)
+    assert m.poses(w).shape == (4, 12, 90)
+    a, combo = m.attributes(torch.tensor([0, 1, 2, 3]), torch.tensor([0, 1, 0, 1]))
+    assert a.shape == (4, 4) and combo.tolist() == [0, 3, 4, 7]
+    h = m.initial_state(combo)
+    assert h.shape == (4, 32)
+    w_out, fw, fz, mu_q, sd_q, mu_p, sd_p = m.cell_forward(w[:, 0], a, h)
+    assert w_out.shape == w[:, 0].shape and fw.shape == fz.shape == (4, 8)
+    assert mu_q.shape == sd_q.shape == mu_p.shape == sd_p.shape == (4, 4) and (sd_q > 0).all()
+    assert m.transition(fw, fz, h).shape == (4, 32)
+    out = m.reconstruct(x, a.new_tensor([0, 1, 2, 3]).long(), torch.tensor([0, 1, 0, 1]))
+    assert out["x_hat"].shape == (4, 12, 90) and out["mu_q"].shape == (4, 12 // L, 4)
+    assert m.sample(torch.tensor([0, 3]), torch.tensor([1, 0]), 10).shape == (2, 10, 90)
+
+
+def _classifiers():
+    from course_lib.evaluation.classifiers import ClassifierConfig, MotionClassifier
+
+    torch.manual_seed(0)
+    return [MotionClassifier(ClassifierConfig(hidden=8, kernel=3)),
+            MotionClassifier(ClassifierConfig.for_task("style").__class__(task="style", classes=("A", "B"),
+                                                                           hidden=8, kernel=3))]
+
+
+def test_algorithm1_loss_finite_and_gradients_reach_every_parameter():
+    m = tiny(kl_warmup=0, kl_anneal=1, cl_start=0, cl_ramp=1, drop_ramp=1, drop_max=0.5)
+    m.set_classifiers(_classifiers())
+    m.step.fill_(5)  # past every warm-up: lambda_KL = 1, lambda_CL = final
+    m.train()
+    out = m.loss(batch())
+    assert torch.isfinite(out["loss"]) and out["lambda_kl"] == 1.0 and out["lambda_cl"] == pytest.approx(0.1)
+    assert out["cl"] > 0 and out["kl"] > 0
+    out["loss"].backward()
+    missing = [n for n, p in m.named_parameters() if p.grad is None or not p.grad.abs().sum() > 0]
+    assert not missing, missing
+    assert int(m.step) == 6  # the schedules' step counter advanced
+    assert all(p.grad is None for clf in m.classifiers for p in clf.parameters())  # classifiers stay frozen
+
+
+def test_nl_ablation_has_unit_alphas_and_proposed_does_not():
+    assert torch.equal(tiny(use_alpha=False).alpha, torch.ones(21))
+    assert tiny().alpha[0] > 1.5 and tiny().alpha.mean().item() == pytest.approx(1.0)
+
+
+def test_scheduled_word_dropping_rate():
+    m = tiny(drop_ramp=10, drop_max=0.5)
+    m.train()
+    m.step.fill_(10)  # rate = 0.5
+    w, w_out = torch.randn(4000, 8), torch.randn(4000, 8)
+    fw = m.f_w(w)
+    fed = m._exposure(w, w_out, fw)
+    dropped = (fed - fw).abs().sum(-1) > 0
+    assert dropped.float().mean().item() == pytest.approx(0.5, abs=0.03)
+    torch.testing.assert_close(fed[dropped], m.f_w(w_out)[dropped])
+    m.eval()
+    assert torch.equal(m._exposure(w, w_out, fw), fw)  # no dropping at evaluation
+
+
+def test_unit_norm_output_and_seeded_sampling():
+    m = tiny()
+    a, s = torch.tensor([0, 1, 2, 3]), torch.tensor([0, 0, 1, 1])
+    x1 = m.sample(a, s, 9, generator=torch.Generator().manual_seed(3))
+    x2 = m.sample(a, s, 9, generator=torch.Generator().manual_seed(3))
+    x3 = m.sample(a, s, 9, generator=torch.Generator().manual_seed(4))
+    assert torch.equal(x1, x2) and not torch.allclose(x1, x3)
+    norms = x1[..., :84].unflatten(-1, (21, 4)).norm(dim=-1)
+    torch.testing.assert_close(norms, torch.ones_like(norms))
+
+
+@pytest.mark.parametrize("kind", ["erd", "quaternet"])
+def test_attribute_rnn_baselines(kind):
+    torch.manual_seed(0)
+    m = AttributeRnn(AttributeRnnConfig(kind=kind, hidden=16, encoder=16, sample_ramp=1))
+    m.train()
+    out = m.loss(batch())
+    assert torch.isfinite(out["loss"])
+    out["loss"].backward()
+    assert m.h0_mu.grad.abs().sum() > 0 and m.f_c.weight.grad.abs().sum() > 0
+    g = lambda: torch.Generator().manual_seed(7)  # noqa: E731
+    x1 = m.sample(torch.tensor([2, 3]), torch.tensor([0, 1]), 6, generator=g())
+    assert x1.shape == (2, 6, 90) and torch.equal(x1, m.sample(torch.tensor([2, 3]), torch.tensor([0, 1]), 6,
+                                                                 generator=g()))
+    torch.testing.assert_close(x1[..., :84].unflatten(-1, (21, 4)).norm(dim=-1), torch.ones(2, 6, 21))
+
+
+def test_clear_errors_on_bad_input():
+    m = tiny()
+    with pytest.raises(ValueError, match=r"\(N, T, 90\)"):
+        m.loss({"x": torch.zeros(2, 12, 89), "action_id": torch.zeros(2), "style_id": torch.zeros(2)})
+    x = poses(2)
+    x[0, 3, 5] = float("nan")
+    with pytest.raises(ValueError, match="NaN"):
+        m.loss({"x": x, "action_id": torch.zeros(2), "style_id": torch.zeros(2)})
+    with pytest.raises(ValueError, match="multiple of the word length"):
+        m.reconstruct(poses(2, 10), torch.zeros(2), torch.zeros(2))
+    with pytest.raises(ValueError, match="action ids"):
+        m.sample(torch.tensor([4]), torch.tensor([0]), 6)
+    with pytest.raises(ValueError, match="distance"):
+        HvrnnConfig(distance="l2")
+    with pytest.raises(ValueError, match="NaN"):
+        DenoisingAutoencoder(DaeConfig(channels=8))(torch.full((1, 4, 90), float("nan")))
+
+
+def test_checkpoint_round_trip(tmp_path):
+    from course_lib.training import load_checkpoint, save_checkpoint
+
+    m = tiny(hierarchical=False)
+    m.set_stats(poses(8) * 3 + 1)
+    save_checkpoint(m, m.config, tmp_path / "h.pt", command="pytest")
+    back = load_checkpoint(tmp_path / "h.pt", HierarchicalVrnn, HvrnnConfig)
+    assert back.config == m.config and torch.equal(back.root_std, m.root_std)
+    a, s = torch.tensor([1, 2]), torch.tensor([1, 0])
+    torch.testing.assert_close(back.sample(a, s, 6, generator=torch.Generator().manual_seed(0)),
+                               m.sample(a, s, 6, generator=torch.Generator().manual_seed(0)))
+
+
+def test_denoising_autoencoder_learns_and_keeps_unit_quaternions():
+    torch.manual_seed(0)
+    dae = DenoisingAutoencoder(DaeConfig(channels=16))
+    g = torch.Generator().manual_seed(0)
+    t = torch.linspace(0, 1, 16)[None, :, None]
+    x = normalize_pose(torch.randn(8, 1, 90, generator=g) + torch.sin(3 * t + torch.randn(8, 1, 90, generator=g)))
+    dae.set_stats(x)
+    first = dae.loss(x, generator=torch.Generator().manual_seed(0))["loss"].item()
+    assert first == pytest.approx(0.1 * 0.5**2, rel=0.3)  # the residual net starts near identity: the noise left
+    opt = torch.optim.Adam(dae.parameters(), 3e-3)
+    for _ in range(100):
+        opt.zero_grad()
+        dae.loss(x)["loss"].backward()
+        opt.step()
+    assert dae.loss(x, generator=torch.Generator().manual_seed(0))["loss"].item() < 0.97 * first
+    y = dae(x)
+    torch.testing.assert_close(y[..., :84].unflatten(-1, (21, 4)).norm(dim=-1), torch.ones(8, 16, 21))
+
+
+# ----------------------------------------------------------------------------- lesson-05 evaluation helpers
+
+
+def test_padding_collapse_metric_and_attribute_grid():
+    from course_lib.experiments.hvrnn import attribute_grid, collapsed_fraction, last_second_activity, to_sequence
+    from course_lib.motion import Motion
+
+    skel = Skeleton.canonical()
+    T = 45
+    still = Motion(np.tile([1.0, 0, 0, 0], (T, 21, 1)), np.tile([0, 0.96, 0], (T, 1)).astype(float), skel, 30.0)
+    t = np.arange(T) / 30.0
+    rot = axis_angle_to_quat(torch.tensor([[1.0, 0, 0]]).expand(T, 3), torch.from_numpy(np.sin(4 * t))).numpy()
+    moving = Motion(still.rotations.copy(), still.root_positions.copy(), skel, 30.0)
+    moving.rotations[:, 1] = rot  # the left hip swings
+    seq = to_sequence(still, 60)
+    assert seq.shape == (60, 90) and np.allclose(seq[45:], seq[44])  # padded by holding the last frame
+    speed, var = last_second_activity([still, moving])
+    assert speed[0] == pytest.approx(0, abs=1e-9) and speed[1] > 0.1 and var[1] > var[0]
+    assert collapsed_fraction([still, moving, still], (0.05, 1e-4)) == pytest.approx(2 / 3)
+    a, s = attribute_grid(3)
+    assert len(a) == 24 and torch.bincount(a).tolist() == [6] * 4 and torch.bincount(s).tolist() == [12] * 2
+
+
+def test_reproduce_registers_hvrnn():
+    from course_lib.reproduce import EXPERIMENTS
+
+    assert "hvrnn" in EXPERIMENTS
