@@ -130,3 +130,32 @@ def test_bad_input_errors():
         m.generate(torch.randn(2, 2, 68), 1, contact_mode="round")
     with pytest.raises(ValueError, match="contact_dims"):
         GmmRnnConfig(dim=10)
+
+
+def test_residual_means_start_from_the_input():
+    """residual=True (the CPU preset): mu_i = x_t + mu_hat_i, so a zero read-out predicts "no change"."""
+    m = GmmRnn(tiny(residual=True))
+    with torch.no_grad():
+        m.out.weight.zero_()
+        m.out.bias.zero_()
+    x = torch.randn(2, 5, 68)
+    params, _ = m(x)
+    assert torch.equal(params["mu"], x.unsqueeze(-2).expand(-1, -1, 5, -1))
+    assert not GmmRnnConfig().residual and GmmRnnConfig.cpu().residual  # the paper's output is not residual
+
+
+def test_sampling_bias_shrinks_the_spread():
+    """Graves' bias b: sigma * exp(-b) and sharper weights; b = 0 is the paper's sampling."""
+    m = GmmRnn(tiny())
+    g = torch.Generator().manual_seed(0)
+    params = {"logits": torch.tensor([[2.0, 0.0, 0.0, 0.0, 0.0]]).expand(4000, -1),
+              "mu": torch.arange(5.0)[None, :, None].expand(4000, 5, 68) * 10,
+              "log_sigma": torch.zeros(4000, 5, 68)}
+    plain, biased = m.sample_mixture(params, g), m.sample_mixture(params, g, bias=2.0)
+    # component 0 (mean 0) has weight e^2 / (e^2 + 4) = 0.649 at b = 0 and e^6 / (e^6 + 4) = 0.990 at b = 2
+    assert (plain[:, 0].abs() < 5).float().mean() == pytest.approx(0.649, abs=0.03)
+    assert (biased[:, 0].abs() < 5).float().mean() == pytest.approx(0.990, abs=0.01)
+    near = biased[biased[:, 0].abs() < 5]
+    assert near.std() == pytest.approx(math.exp(-2.0), rel=0.05)
+    with pytest.raises(ValueError, match="bias"):
+        m.sample_mixture(params, g, bias=-1.0)

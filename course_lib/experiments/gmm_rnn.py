@@ -25,7 +25,7 @@ import torch
 
 from course_lib.datasets import WindowDataset, load_stats
 from course_lib.motion import Motion
-from course_lib.representations import decode_state_features, root_start
+from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"
@@ -169,9 +169,15 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
 
 
 def _features(m: Motion) -> np.ndarray:
-    from course_lib.representations import encode_state_features
-
     return encode_state_features(m)
+
+
+def foot_skate_of(positions: np.ndarray, fps: float) -> float:
+    """positions (T, J, 3) or (N, T, J, 3) -> foot skate (m/s) of evaluation.foot_skate."""
+    from course_lib.evaluation import foot_skate
+
+    pos = np.asarray(positions)
+    return foot_skate(pos[None] if pos.ndim == 3 else pos, fps=fps)
 
 
 def quality_row(motions, mocap: list[Motion], positions: np.ndarray | None = None, fps: float = 30.0,
@@ -329,7 +335,9 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
     ds.save_stats(_stats_path(checkpoints))
     common = {"data_seed": spec.data_seed, "train_seed": seed, "train_windows": len(ds), "test_clips": len(test)}
     save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=COMMAND, overwrite=True,
-                    metrics={**common, **results["rnn"], "results": results})
+                    metrics={**common, **results["rnn"], "results": results,
+                             "loss_every_20_steps": _rounded([float(np.mean(hist.step["loss"][i:i + 20]))
+                                                              for i in range(0, hist.num_steps, 20)], 4)})
     for name, (refiner, _, hist) in kept.items():
         save_checkpoint(refiner, refiner.config, checkpoints / f"refiner_{name.lower()}.pt", command=COMMAND,
                         overwrite=True, metrics={**common, "refiner_seed": spec.seeds[0],

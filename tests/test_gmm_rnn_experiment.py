@@ -1,0 +1,73 @@
+"""Lesson-03 experiment plumbing (course_lib/experiments/gmm_rnn.py) on a few small clips: windows,
+continuations, the Fig. 12 stand-in rows, the long-generation checks and the foot-lock row."""
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.datasets import WindowDataset, generate_locomotion_set
+from course_lib.experiments import gmm_rnn as X
+from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
+from course_lib.models.refiner import Refiner, RefinerConfig
+
+
+@pytest.fixture(scope="module")
+def setup():
+    torch.manual_seed(0)
+    clips = generate_locomotion_set(8, seed=3, fps=30.0, duration=3.0, n_subjects=4)
+    ds = WindowDataset(clips[:6], "state_features", length=50, stride=10)
+    model = GmmRnn(GmmRnnConfig.cpu(fc_width=16, lstm_width=16, out_width=16)).eval()
+    refiners = {name: Refiner(RefinerConfig.cpu(fc_width=8, lstm_width=8, contacts=name == "GAN2"),
+                              stats=ds.stats).eval() for name in ("GAN1", "GAN2")}
+    spec = X.Lesson03Spec(eval_seconds=2.0, n_random=4, random_seconds=3.0)
+    return clips, ds, model, refiners, spec
+
+
+def test_window_sampler_shapes_and_seed():
+    feats = [np.arange(40.0).reshape(20, 2), np.zeros((5, 2))]
+    a = X.window_sampler(feats, 6, 3, torch.Generator().manual_seed(1))()
+    b = X.window_sampler(feats, 6, 3, torch.Generator().manual_seed(1))()
+    assert a.shape == (3, 6, 2) and torch.equal(a, b)
+    assert (torch.diff(a[..., 0], dim=1) == 2).all()  # consecutive frames of the long sequence only
+    with pytest.raises(ValueError, match="no sequence has 30 frames"):
+        X.window_sampler(feats, 30, 3, torch.Generator())
+
+
+def test_quality_table_rows(setup):
+    clips, ds, model, refiners, spec = setup
+    rows = X.quality_table(model, refiners, clips, ds.stats, spec, seed=0)
+    assert list(rows) == list(X.ROWS)
+    for name, r in rows.items():
+        assert set(r) == {"foot_skate", "jitter", "fid", "is", "two_sample"}, name
+        assert all(np.isfinite(v) for v in r.values()), name
+        assert 0.0 <= r["two_sample"] <= 1.0 and 1.0 <= r["is"] <= 4.0 + 1e-9
+    assert rows["Mocap"]["foot_skate"] < 0.05  # the generator's planted feet barely move
+    # an untrained RNN skates; the foot lock removes most of GAN2's skate and changes nothing else
+    assert rows["GAN2 + foot lock"]["foot_skate"] < rows["GAN2"]["foot_skate"]
+    assert rows["GAN2 + foot lock"]["fid"] == rows["GAN2"]["fid"]
+
+
+def test_continuations_start_from_the_clips(setup):
+    clips, ds, model, refiners, spec = setup
+    sets = X.continuations(model, refiners, clips[:3], ds.stats, spec, seed=0)
+    assert {k: tuple(v.shape) for k, v in sets.items()} == {k: (3, 60, 68) for k in ("RNN", "GAN1", "GAN2")}
+    motions = X.to_motions(sets["RNN"], ds.stats, clips[:3], spec.fps)
+    for m, c in zip(motions, clips[:3], strict=True):
+        assert np.allclose(m.positions()[:2], c.positions()[:2], atol=1e-4)  # the two given frames
+
+
+def test_long_generation_report(setup):
+    clips, ds, model, refiners, spec = setup
+    out = X.long_generation(model, refiners["GAN2"], clips[0], ds.stats, spec, clips, seed=0)
+    assert out["frames"] == 90 and out["freeze_floor"] > 0
+    lo, hi = out["data_root_height"]
+    assert 0.5 < lo < hi < 1.3
+    for name in ("RNN", "GAN2"):
+        r = out[name]
+        assert r["nan_motions"] == 0 and r["apd_m"] > 0 and 0 <= r["frozen"] <= 4
+
+
+def test_joint_speed_and_freeze_floor():
+    pos = np.zeros((5, 2, 3))
+    pos[:, 1, 0] = np.arange(5) * 0.1  # joint 1 moves 0.1 m per frame
+    assert np.allclose(X.joint_speed(pos, 30.0), 0.1 * 30 / 2)
