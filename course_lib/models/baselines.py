@@ -299,7 +299,7 @@ class AttributeRnnConfig:
     encoder: int = 500  # ERD's FC encoder / decoder width
     distance: str = "d1"  # geodesic of the reconstruction, as the proposed model (Ghorbani eq. 17)
     rec_weight: float = 10.0  # as HvrnnConfig.rec_weight
-    root_weight: float = 0.1  # weight of the root features' squared error (standardised)
+    root_weight: float = 1.0  # weight of the root features' squared error (standardised)
     input_noise: float = 0.05  # ERD: std of Gaussian noise on the inputs (Fragkiadaki's curriculum, fixed)
     sample_max: float = 0.3  # QuaterNet: final probability of feeding back its own prediction (scheduled sampling)
     sample_ramp: int = 2000  # steps from 0 to sample_max
@@ -346,6 +346,10 @@ class AttributeRnn(PoseCoding, nn.Module):
         self.register_buffer("root_mean", torch.zeros(NUM_ROOT))
         self.register_buffer("root_std", torch.ones(NUM_ROOT))
         self.register_buffer("step", torch.zeros((), dtype=torch.long))
+
+    def output_layer(self) -> tuple[nn.Linear, int]:
+        """The decoder's last linear layer, one frame per step (used by `set_stats`)."""
+        return (self.decoder[-1] if self.config.kind == "erd" else self.decoder), 1
 
     def _initial(self, combo: torch.Tensor, generator: torch.Generator | None = None):
         """h_0 ~ N(mu_c, diag sigma_c^2): (N,) -> the RNN's state ((2, N, H) GRU, or LSTM's (h, c))."""

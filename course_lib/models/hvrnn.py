@@ -76,7 +76,7 @@ class HvrnnConfig:
     use_alpha: bool = True  # False: Proposed(NL), all alpha_k = 1
     distance: str = "d1"  # d1 | d2 | d3 (eq. 17, 18, 20) | log (eq. 21, via rotation matrices)
     rec_weight: float = 10.0  # multiplies the reconstruction term
-    root_weight: float = 0.1  # weight of the root features' squared error (standardised units)
+    root_weight: float = 1.0  # weight of the root features' squared error (standardised units)
     lambda_ang: float = 0.1  # weight of the unit-norm constraint, eq. (26)
     lambda_cl: float = 0.1  # final lambda_CL of eq. (14); 0 = Proposed(NC)
     cl_feature_weight: float = 1.0  # beta of the feature-layer l2 term of eq. (24)
@@ -251,10 +251,15 @@ class PoseCoding:
     model space (root features standardised with buffers root_mean/root_std) and attribute coding."""
 
     def set_stats(self, x: torch.Tensor) -> None:
-        """Root-feature mean/std from training poses x (N, T, D) (or (M, D))."""
+        """Root-feature mean/std from training poses x (N, T, D) (or (M, D)), and a data-dependent start: the
+        output layer begins at the mean training pose, its weights scaled down by 10 (faster early training)."""
         root = x.reshape(-1, x.shape[-1])[:, -NUM_ROOT:].double()
         self.root_mean.copy_(root.mean(0).float())
         self.root_std.copy_(root.std(0).clamp_min(1e-3).float())
+        last, frames = self.output_layer()
+        with torch.no_grad():
+            last.weight.mul_(0.1)
+            last.bias.copy_(self.to_model(x.reshape(-1, x.shape[-1])).mean(0).repeat(frames))
 
     def to_model(self, x: torch.Tensor) -> torch.Tensor:
         """raw poses (..., D) -> model space: quaternions as they are, root standardised."""
@@ -317,6 +322,10 @@ class HierarchicalVrnn(PoseCoding, nn.Module):
         self.classifiers: list = []  # frozen MotionClassifiers for L_CL, not part of the state_dict
 
     # --- data plumbing -------------------------------------------------------------------
+
+    def output_layer(self) -> tuple[nn.Linear, int]:
+        """The last linear layer of the pose output (f_dec^w, or f_dec for SL) and the frames it emits."""
+        return (self.f_dec_w if self.config.hierarchical else self.f_dec)[-1], self.config.frames_per_word
 
     def set_classifiers(self, classifiers: list) -> None:
         """Frozen attribute classifiers (task 'action' / 'style') for L_CL, eq. (24)."""
