@@ -31,7 +31,8 @@ Differs from the paper:
 - scheduled word dropping replaces the word fed to the transition f_h (not the posterior,
   which must see the data) by the cell's own output w~_n, with a rate growing linearly;
 - the classifiers of L_CL (eq. 24) are frozen `MotionClassifier`s passed in with
-  `set_classifiers`; β is one weight for the feature l2 term and one for the cross-entropy.
+  `set_classifiers`; β is one weight for the feature l2 term (made relative to the size of the
+  real features) and one for the cross-entropy.
 """
 
 from __future__ import annotations
@@ -78,7 +79,7 @@ class HvrnnConfig:
     rec_weight: float = 10.0  # multiplies the reconstruction term
     root_weight: float = 1.0  # weight of the root features' squared error (standardised units)
     lambda_ang: float = 0.1  # weight of the unit-norm constraint, eq. (26)
-    lambda_cl: float = 0.1  # final lambda_CL of eq. (14); 0 = Proposed(NC)
+    lambda_cl: float = 1.0  # final lambda_CL of eq. (14) (the paper plots it, gives no value); 0 = Proposed(NC)
     cl_feature_weight: float = 1.0  # beta of the feature-layer l2 term of eq. (24)
     cl_label_weight: float = 1.0  # beta of the label cross-entropy of eq. (24)
     kl_warmup: int = 200  # steps with lambda_KL = 0 (warm-up phase)
@@ -408,14 +409,15 @@ class HierarchicalVrnn(PoseCoding, nn.Module):
                 "sd_p": sd_p}
 
     def classifier_loss(self, x: torch.Tensor, x_hat: torch.Tensor, labels: dict) -> torch.Tensor:
-        """L_CL = sum_c [beta_f ||l(X) - l(X~)||^2 / F + beta_y CE(p(a|X~), a)]  -- eq. (24); (N, T, D) x 2 -> ().
-        The l2 term is averaged over the F feature dimensions."""
+        """L_CL = sum_c [beta_f ||l(X) - l(X~)||^2 / ||l(X)||^2 + beta_y CE(p(a|X~), a)]  -- eq. (24);
+        (N, T, D) x 2 -> ().  The l2 term is relative to the size of the real features (batch means)."""
         c, total = self.config, x.new_zeros(())
         for clf in self.classifiers:
             with torch.no_grad():
                 f_real = clf.features(x)
             f_fake = clf.features(x_hat)
-            total = total + c.cl_feature_weight * F.mse_loss(f_fake, f_real)
+            # relative l2 error of the feature layer: scale-free, whatever the classifier's activation sizes
+            total = total + c.cl_feature_weight * F.mse_loss(f_fake, f_real) / f_real.pow(2).mean().clamp_min(1e-6)
             total = total + c.cl_label_weight * F.cross_entropy(clf.fc(f_fake), labels[clf.config.task])
         return total
 
