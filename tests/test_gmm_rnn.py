@@ -159,3 +159,26 @@ def test_sampling_bias_shrinks_the_spread():
     assert near.std() == pytest.approx(math.exp(-2.0), rel=0.05)
     with pytest.raises(ValueError, match="bias"):
         m.sample_mixture(params, g, bias=-1.0)
+
+
+def test_self_feed_uses_own_samples_only_in_training():
+    """self_feed=(k, m): in training, steps k..k+m-1 of each cycle read the model's own samples."""
+    torch.manual_seed(0)
+    m = GmmRnn(tiny(self_feed=(2, 3), noise_std=0.0))
+    x = torch.randn(3, 12, 68)
+    m.eval()
+    forced = m.loss(x)["nll"]
+    m.train()
+    torch.manual_seed(1)
+    fed = m.loss(x)
+    assert torch.isfinite(fed["loss"]) and not torch.allclose(fed["nll"], forced)
+    fed["loss"].backward()
+    assert all(p.grad is not None and torch.isfinite(p.grad).all() for p in m.parameters())
+    # with the first k = 11 steps true, a 12-frame window (11 inputs) is plain teacher forcing
+    m2 = GmmRnn(tiny(self_feed=(11, 1), noise_std=0.0))
+    m2.load_state_dict(m.state_dict())
+    m2.train()
+    m.eval()
+    assert torch.allclose(m2.loss(x)["nll"], m.loss(x)["nll"], atol=1e-5)
+    with pytest.raises(ValueError, match="self_feed"):
+        GmmRnnConfig(self_feed=(0, 3))

@@ -71,3 +71,12 @@ def test_joint_speed_and_freeze_floor():
     pos = np.zeros((5, 2, 3))
     pos[:, 1, 0] = np.arange(5) * 0.1  # joint 1 moves 0.1 m per frame
     assert np.allclose(X.joint_speed(pos, 30.0), 0.1 * 30 / 2)
+
+
+def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
+    _, ds, _, _, _ = setup
+    spec = X.Lesson03Spec(finetune=((2, 3, 2), (1, 4, 2)))
+    model, hist, ft = X.train_rnn(ds, spec, seed=0, steps=3, progress=False)
+    assert hist.num_steps == 3 and ft.num_steps == 4 and not model.training
+    assert model.config.self_feed == (1, 4) and model.config.residual
+    assert all(np.isfinite(hist.step["loss"] + ft.step["loss"]))

@@ -38,8 +38,14 @@ class Lesson03Spec:
     """Every setting of the lesson-03 reproduction (sizes are the CPU ones, see the notebook's table)."""
 
     fps: float = 30.0  # sec. 4.1.3
-    rnn_steps: int = 4000  # 50-frame windows, batch 20 (sec. 4.1.3); ~10 epochs of the training windows
+    rnn_steps: int = 6000  # teacher forcing on 50-frame windows, batch 20 (sec. 4.1.3); ~14 epochs
+    # then fine-tuning stages (true frames, own predictions, steps): inputs alternate true frames and the
+    # model's own predictions (not in the paper; see gmm_rnn.py "differs")
+    finetune: tuple = ((10, 10, 1000), (5, 45, 1000))
+    finetune_lr: float = 5e-4
+    sample_bias: float = 0.0  # Graves' sampling bias at generation (0 = the paper's sampling)
     window_stride: int = 5  # frames between training windows
+    rnn_noise: float = 0.05  # sd of the input noise, normalised units (sec. 4.1.3: 0.05)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
     refiner_iterations: int = 300  # adversarial rounds after the warm-up (sec. 4.2.2)
     max_r_updates: int = 40  # cap on R's adaptive update count per round (the paper has none)
@@ -89,21 +95,36 @@ def window_sampler(features: list[np.ndarray], length: int, batch: int, generato
 # ----------------------------------------------------------------------------- training
 
 
-def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int | None = None, progress: bool = True):
-    """The GMM-RNN of sec. 4.1 on ds's windows -> (model, History).  RMSProp lr 1e-3 x 0.95 per epoch."""
-    from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
-    from course_lib.training import fit
+def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int | None = None,
+              finetune_steps: int | None = None, progress: bool = True):
+    """The GMM-RNN of sec. 4.1 on ds's windows -> (model, History, fine-tuning History).
 
-    config = GmmRnnConfig.cpu(fps=spec.fps)
+    Teacher forcing with input noise, RMSProp lr 1e-3 x 0.95 per epoch (sec. 4.1.3); then the stages of
+    spec.finetune with ``self_feed`` inputs (true frames alternating with the model's own predictions) at
+    spec.finetune_lr; finetune_steps overrides every stage's step count."""
+    from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
+    from course_lib.training import History, fit
+
+    config = GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise)
     torch.manual_seed(seed)
     model = GmmRnn(config)
     sample = window_sampler(ds.features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
     steps_per_epoch = max(1, len(ds) // config.batch_size)
-    hist = fit(model, sample, steps=steps or spec.rnn_steps, epochs=None, lr=config.lr, optimizer="rmsprop",
+    hist = fit(model, sample, steps=spec.rnn_steps if steps is None else steps, lr=config.lr, optimizer="rmsprop",
                lr_schedule=config.lr_factor, steps_per_epoch=steps_per_epoch, progress=progress, seed=seed,
                desc="GMM-RNN")
+    ft = History()
+    for i, (k, m, n) in enumerate(spec.finetune):
+        n = n if finetune_steps is None else finetune_steps
+        if n > 0:
+            config.self_feed = (int(k), int(m))
+            stage = fit(model, sample, steps=n, lr=spec.finetune_lr, optimizer="rmsprop", progress=progress,
+                        seed=seed + 1 + i, desc=f"GMM-RNN self-fed {k}/{m}")
+            for v in stage.step["loss"]:
+                ft.log_step({"loss": v})
+            ft.seconds += stage.seconds
     model.eval()
-    return model, hist
+    return model, hist, ft
 
 
 def start_frames(features: list[np.ndarray], n: int, generator: torch.Generator) -> torch.Tensor:
@@ -115,7 +136,7 @@ def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> tor
     """spec.pool_sequences RNN motions of spec.pool_frames frames from random training frames -> (N, T, D)."""
     g = torch.Generator().manual_seed(seed)
     x0 = start_frames(ds.features, spec.pool_sequences, g)
-    return model.generate(x0, spec.pool_frames - 2, generator=g, stats=ds.stats)
+    return model.generate(x0, spec.pool_frames - 2, generator=g, stats=ds.stats, bias=spec.sample_bias)
 
 
 def train_gan(pool: torch.Tensor, ds: WindowDataset, spec: Lesson03Spec, contacts: bool, seed: int,
@@ -162,7 +183,8 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
     that -> {"RNN": features, name: features, ...} normalised (N, T, D)."""
     T = int(round(spec.eval_seconds * spec.fps))
     x0 = torch.from_numpy(np.stack([(_features(m)[:2] - stats[0]) / stats[1] for m in clips])).float()
-    out = {"RNN": model.generate(x0, T - 2, generator=torch.Generator().manual_seed(seed), stats=stats)}
+    out = {"RNN": model.generate(x0, T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
+                                 bias=spec.sample_bias)}
     with torch.no_grad():
         out.update({name: r(out["RNN"]) for name, r in refiners.items()})
     return out
@@ -232,7 +254,8 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
     variance is under `freeze_floor`), APD (m) over the whole motion and the features (for plots)."""
     T = int(round(spec.random_seconds * spec.fps))
     x0 = torch.from_numpy((_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
-    rnn = model.generate(x0.contiguous(), T - 2, generator=torch.Generator().manual_seed(seed), stats=stats)
+    rnn = model.generate(x0.contiguous(), T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
+                         bias=spec.sample_bias)
     with torch.no_grad():
         sets = {"RNN": rnn, "GAN2": refiner(rnn)}
     heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
@@ -314,8 +337,10 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
     train, test, ds = lesson03_data(spec, progress)
     out = {"spec": asdict(spec), "data_seconds": time.perf_counter() - t0, "train_windows": len(ds),
            "test_clips": len(test)}
-    model, hist = train_rnn(ds, spec, seed, progress=progress)
-    out["rnn"] = {"seconds": hist.seconds, "steps": hist.num_steps, "final_nll": hist.final("loss", 50)}
+    model, hist, ft = train_rnn(ds, spec, seed, progress=progress)
+    out["rnn"] = {"seconds": hist.seconds, "steps": hist.num_steps, "final_nll": hist.final("loss", 50),
+                  "finetune_seconds": ft.seconds, "finetune_steps": ft.num_steps,
+                  "finetune_final_nll": ft.final("loss", 50) if ft.num_steps else None}
     print(f"GMM-RNN: {hist}", file=sys.stderr)
     pool = rnn_pool(model, ds, spec, seed)
     out["per_seed"], kept = {}, None
@@ -336,14 +361,19 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
     common = {"data_seed": spec.data_seed, "train_seed": seed, "train_windows": len(ds), "test_clips": len(test)}
     save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=COMMAND, overwrite=True,
                     metrics={**common, **results["rnn"], "results": results,
-                             "loss_every_20_steps": _rounded([float(np.mean(hist.step["loss"][i:i + 20]))
-                                                              for i in range(0, hist.num_steps, 20)], 4)})
+                             "loss_every_20_steps": _every_20(hist), "finetune_loss_every_20_steps": _every_20(ft)})
     for name, (refiner, _, hist) in kept.items():
         save_checkpoint(refiner, refiner.config, checkpoints / f"refiner_{name.lower()}.pt", command=COMMAND,
                         overwrite=True, metrics={**common, "refiner_seed": spec.seeds[0],
                                                  **_rounded(_gan_summary(hist)),
                                                  "history": _rounded(_history_dict(hist), 5)})
     return results
+
+
+def _every_20(hist) -> list:
+    """A training curve thinned to one mean per 20 steps (for the manifest)."""
+    loss = hist.step.get("loss", [])
+    return _rounded([float(np.mean(loss[i:i + 20])) for i in range(0, len(loss), 20)], 4)
 
 
 def _history_dict(hist) -> dict:

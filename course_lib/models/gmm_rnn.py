@@ -32,6 +32,9 @@ Differs from the paper:
   ``"none"`` keeps the raw sample).
 - ``GmmRnnConfig.cpu()`` shrinks every width 500 -> 128 so that a model trains in minutes on a 2-core
   CPU; the paper pre-trains on CMU and fine-tunes (sec. 4.1.3), we train once on the course data.
+- ``self_feed=(k, m)`` (used to fine-tune the shipped model after teacher forcing): inputs alternate k
+  true frames and m of the model's own samples, so it learns to return from its own errors.  Teacher
+  forcing alone (the paper) drifted: root height sinking, joint angles growing over 10 s of generation.
 - ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i.  At the paper's
   output (mu_i = mu_hat_i) a 4000-step CPU model still predicted the root height no better than its
   marginal (one-step error ~1 sd, while copying x_t errs by 0.12 sd) and its samples skated at
@@ -73,6 +76,7 @@ class GmmRnnConfig:
     batch_size: int = 20  # sec. 4.1.3
     contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits (last two of state_features)
     residual: bool = False  # mu_i = x_t + mu_hat_i instead of mu_hat_i (see "differs"); the paper: False
+    self_feed: tuple[int, int] | None = None  # (k, m): k true frames then m own samples as inputs, repeated
 
     @classmethod
     def cpu(cls, **overrides) -> GmmRnnConfig:
@@ -93,6 +97,11 @@ class GmmRnnConfig:
         self.contact_dims = tuple(int(c) for c in self.contact_dims)
         if any(not 0 <= c < self.dim for c in self.contact_dims):
             raise ValueError(f"GmmRnnConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
+        if self.self_feed is not None:
+            self.self_feed = tuple(int(v) for v in self.self_feed)
+            if len(self.self_feed) != 2 or min(self.self_feed) < 1:
+                raise ValueError(f"GmmRnnConfig: self_feed must be (true frames >= 1, own frames >= 1), got "
+                                 f"{self.self_feed}")
 
 
 def mixture_log_prob(x: torch.Tensor, logits: torch.Tensor, mu: torch.Tensor, log_sigma: torch.Tensor) -> torch.Tensor:
@@ -162,9 +171,29 @@ class GmmRnn(nn.Module):
             noise = torch.randn_like(inputs) * self.config.noise_std
         if noise is not None:
             inputs = inputs + noise
-        params, _ = self(inputs)
-        nll = -mixture_log_prob(targets, **params).mean()  # E = -log p(x_{t+1} | x_t, h_t, C_t)  -- eq. (8)
+        if self.training and self.config.self_feed is not None:
+            nll = -self._self_fed_log_prob(inputs, targets).mean()
+        else:
+            params, _ = self(inputs)
+            nll = -mixture_log_prob(targets, **params).mean()  # E = -log p(x_{t+1} | x_t, h_t, C_t)  -- eq. (8)
         return {"loss": nll, "nll": nll.detach()}
+
+    def _self_fed_log_prob(self, inputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """(N, T-1, D) noisy true inputs and targets -> log p of every target (N, T-1), where in each cycle of
+        k + m steps the first k read the true frame and the next m read the model's own (detached) prediction
+        of the previous step, the mean of its most likely component (acLSTM, Zhou et al. 2018; not in Wang et
+        al.).  Feeding random samples instead made a test model widen its components until generation blew up."""
+        k, m = self.config.self_feed
+        state, own, out = None, None, []
+        for t in range(inputs.shape[1]):
+            x_t = inputs[:, t] if t % (k + m) < k or own is None else own
+            params, state = self(x_t[:, None], state)
+            params = {key: v[:, 0] for key, v in params.items()}
+            out.append(mixture_log_prob(targets[:, t], **params))
+            with torch.no_grad():  # the own prediction: the mean of the most likely component
+                top = params["logits"].argmax(-1)
+                own = params["mu"][torch.arange(len(top)), top].detach()
+        return torch.stack(out, dim=1)
 
     # --- generation (sec. 4.1.4) ----------------------------------------------------------
 
