@@ -41,9 +41,9 @@ class Lesson03Spec:
     rnn_steps: int = 6000  # teacher forcing on 50-frame windows, batch 20 (sec. 4.1.3); ~14 epochs
     # then fine-tuning stages (true frames, own predictions, steps): inputs alternate true frames and the
     # model's own predictions (not in the paper; see gmm_rnn.py "differs")
-    finetune: tuple = ((10, 10, 1000), (5, 45, 1000))
+    finetune: tuple = ((10, 10, 1000),)
     finetune_lr: float = 5e-4
-    sample_bias: float = 0.0  # Graves' sampling bias at generation (0 = the paper's sampling)
+    sample_bias: float = 1.0  # Graves' sampling bias at generation (0 = the paper's sampling)
     window_stride: int = 5  # frames between training windows
     rnn_noise: float = 0.05  # sd of the input noise, normalised units (sec. 4.1.3: 0.05)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
