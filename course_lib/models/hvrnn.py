@@ -79,7 +79,7 @@ class HvrnnConfig:
     rec_weight: float = 10.0  # multiplies the reconstruction term
     root_weight: float = 1.0  # weight of the root features' squared error (standardised units)
     lambda_ang: float = 0.1  # weight of the unit-norm constraint, eq. (26)
-    lambda_cl: float = 1.0  # final lambda_CL of eq. (14) (the paper plots it, gives no value); 0 = Proposed(NC)
+    lambda_cl: float = 0.1  # final lambda_CL of eq. (14) (the paper plots it, gives no value); 0 = Proposed(NC)
     cl_feature_weight: float = 1.0  # beta of the feature-layer l2 term of eq. (24)
     cl_label_weight: float = 1.0  # beta of the label cross-entropy of eq. (24)
     kl_warmup: int = 200  # steps with lambda_KL = 0 (warm-up phase)
