@@ -38,7 +38,9 @@ def test_quality_table_rows(setup):
     rows = X.quality_table(model, refiners, clips, ds.stats, spec, seed=0)
     assert list(rows) == list(X.ROWS)
     for name, r in rows.items():
-        assert set(r) == {"foot_skate", "jitter", "fid", "is", "two_sample"}, name
+        extra = {"contact_agreement"} if name in ("RNN", "GAN1", "GAN2") else set()
+        assert set(r) == {"foot_skate", "jitter", "fid", "is", "two_sample"} | extra, name
+        assert 0.0 <= r.get("contact_agreement", 0.5) <= 1.0
         assert all(np.isfinite(v) for v in r.values()), name
         assert 0.0 <= r["two_sample"] <= 1.0 and 1.0 <= r["is"] <= 4.0 + 1e-9
     assert rows["Mocap"]["foot_skate"] < 0.05  # the generator's planted feet barely move
@@ -65,6 +67,7 @@ def test_long_generation_report(setup):
     for name in ("RNN", "GAN2"):
         r = out[name]
         assert r["nan_motions"] == 0 and r["apd_m"] > 0 and 0 <= r["frozen"] <= 4
+        assert 0 <= r["in_range_motions"] <= r["in_range_first_10s"] <= 4
 
 
 def test_joint_speed_and_freeze_floor():
