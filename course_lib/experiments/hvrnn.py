@@ -196,7 +196,7 @@ def model_specs(scale: float = 1.0) -> dict[str, ModelSpec]:
     def s(n):
         return max(2, int(n * scale))
 
-    sched = dict(kl_warmup=s(50), kl_anneal=s(250), cl_start=s(100), cl_ramp=s(250), drop_ramp=s(400))
+    sched = dict(kl_warmup=s(50), kl_anneal=s(250), cl_start=s(300), cl_ramp=s(250), drop_ramp=s(400))
     specs = [
         ModelSpec("hvrnn_proposed", "Proposed", HierarchicalVrnn, HvrnnConfig.cpu(**sched), s(600)),
         ModelSpec("hvrnn_sl", "Proposed(SL)", HierarchicalVrnn, HvrnnConfig.cpu(hierarchical=False, **sched), s(600)),
