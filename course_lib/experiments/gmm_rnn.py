@@ -140,9 +140,10 @@ def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> tor
 
 
 def train_gan(pool: torch.Tensor, ds: WindowDataset, spec: Lesson03Spec, contacts: bool, seed: int,
-              iterations: int | None = None, progress: bool = True):
+              iterations: int | None = None, progress: bool = True, schedule=None):
     """R and D of sec. 4.2 on random spec.refiner_window-frame crops of the RNN pool vs mocap windows
-    -> (refiner, discriminator, History).  contacts=False is GAN1, True GAN2 (sec. 4.3)."""
+    -> (refiner, discriminator, History).  contacts=False is GAN1, True GAN2 (sec. 4.3).  schedule: an
+    AdversarialSchedule (default: the paper's rule with r capped at spec.max_r_updates)."""
     from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
 
     config = RefinerConfig.cpu(contacts=contacts, fps=spec.fps)
@@ -151,8 +152,8 @@ def train_gan(pool: torch.Tensor, ds: WindowDataset, spec: Lesson03Spec, contact
     g = torch.Generator().manual_seed(seed)
     rnn = window_sampler(list(pool.numpy()), spec.refiner_window, config.d_batch, g)
     real = window_sampler(ds.features, spec.refiner_window, config.d_batch, g)
-    schedule = AdversarialSchedule(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high,
-                                   max_r_updates=spec.max_r_updates)
+    schedule = schedule or AdversarialSchedule(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high,
+                                               max_r_updates=spec.max_r_updates)
     hist = train_refiner(refiner, disc, rnn, real, iterations=spec.refiner_iterations if iterations is None
                          else iterations, config=config, schedule=schedule, generator=g, progress=progress)
     hist.r_schedule = list(schedule.history)
