@@ -223,3 +223,17 @@ def test_bad_input_errors():
         foot_lock(np.zeros((5, 21, 3)), np.zeros((4, 2)))
     with pytest.raises(ValueError, match="d_batch"):
         RefinerConfig(d_batch=31)
+
+
+def test_schedule_smoothing_ignores_a_single_spike():
+    paper, smooth = AdversarialSchedule(warmup=0), AdversarialSchedule(warmup=0, smooth=4)
+    for s in (paper, smooth):
+        for loss in (0.3, 0.3, 0.3, 2.5):  # one batch above high = 1
+            s.next_round()
+            s.record(loss)
+    assert paper.r_updates == 2  # halved by the spike
+    assert smooth.r_updates == 5  # mean of the last 4 = 0.85 < 1: unchanged
+    smooth.next_round()
+    assert smooth.record(2.5) == 2  # mean (0.3 + 0.3 + 2.5 + 2.5) / 4 = 1.4 > 1
+    with pytest.raises(ValueError, match="smooth"):
+        AdversarialSchedule(smooth=0)

@@ -335,14 +335,17 @@ class AdversarialSchedule:
 
     Round 0 is the warm-up: (warmup, warmup) updates.  Every later round: (r_updates, 1); after each
     D update `record(d_loss)` doubles r_updates if d_loss < low and halves it (at least 1) if > high.
+    smooth > 1 applies the rule to the mean of the last ``smooth`` D losses instead (not in the paper: with
+    the loss of single batches, rare spikes above ``high`` ratchet r down to 1 for good).
     """
 
     def __init__(self, warmup: int = 75, r_per_d: int = 5, low: float = 0.01, high: float = 1.0,
-                 max_r_updates: int = 640):
-        if warmup < 0 or r_per_d < 1 or not 0 < low < high or max_r_updates < r_per_d:
+                 max_r_updates: int = 640, smooth: int = 1):
+        if warmup < 0 or r_per_d < 1 or not 0 < low < high or max_r_updates < r_per_d or smooth < 1:
             raise ValueError(f"AdversarialSchedule: bad settings warmup={warmup}, r_per_d={r_per_d}, "
-                             f"low={low}, high={high}, max_r_updates={max_r_updates}")
+                             f"low={low}, high={high}, max_r_updates={max_r_updates}, smooth={smooth}")
         self.warmup, self.low, self.high, self.max_r_updates = warmup, low, high, max_r_updates
+        self.smooth, self._recent = int(smooth), []  # the rule reads the mean of the last `smooth` D losses
         self.r_updates, self.round = r_per_d, 0
         self.history: list[int] = []  # r_updates of every round after the warm-up, for plots
 
@@ -362,6 +365,8 @@ class AdversarialSchedule:
         """D's loss after its update -> R's update count for the next round."""
         if not math.isfinite(d_loss):
             raise FloatingPointError(f"discriminator loss is {d_loss}")
+        self._recent = (self._recent + [float(d_loss)])[-self.smooth:]
+        d_loss = sum(self._recent) / len(self._recent)  # smooth = 1: the paper's rule on each batch
         if d_loss < self.low:  # D too strong: train R more
             self.r_updates = min(2 * self.r_updates, self.max_r_updates)
         elif d_loss > self.high:  # D too weak: train R less
