@@ -211,6 +211,12 @@ def test_reproduce_runs_manifest_commands_in_order(tmp_path, capsys):
     assert "reproduce: [b_model] $ python -c" in capsys.readouterr().out
     assert reproduce.main(["--manifest", str(manifest), "--only", "a_model"]) == 0
     assert log.read_text().splitlines() == ["b", "a", "a"]
+    entries["c_model"] = {"command": append + "b"}  # a command that rebuilds two entries runs once
+    manifest.write_text(json.dumps(entries))
+    capsys.readouterr()
+    assert reproduce.main(["--manifest", str(manifest)]) == 0
+    assert log.read_text().splitlines() == ["b", "a", "a", "b", "a"]
+    assert "reproduce: [b_model, c_model] $ python -c" in capsys.readouterr().out
 
 
 def test_reproduce_stops_at_failure_and_rejects_bad_manifests(tmp_path):

@@ -38,6 +38,15 @@ def read_manifest(path: Path) -> list[tuple[str, str]]:
     return jobs
 
 
+def distinct_commands(jobs: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """One job per distinct command, in first-seen order, named by every entry it rebuilds
+    ("a, b": one `python -m course_lib.reproduce gmm_rnn` writes the RNN and all six refiners)."""
+    names: dict[str, list[str]] = {}
+    for name, command in jobs:
+        names.setdefault(command, []).append(name)
+    return [(", ".join(n), command) for command, n in names.items()]
+
+
 def run_jobs(jobs: list[tuple[str, str]], root: Path, *, keep_going: bool = False) -> list[str]:
     """Run each command from `root` with this interpreter's bin folder first on PATH; names that failed."""
     env = dict(os.environ, PATH=os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")]))
@@ -71,13 +80,14 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             parser.error(f"--only: no manifest entries named {', '.join(unknown)}")
         jobs = [(name, command) for name, command in jobs if name in args.only]
+    jobs = distinct_commands(jobs)
     if args.dry_run:
         for name, command in jobs:
             print(f"reproduce: [{name}] $ {command}")
         return 0
     root = args.root if args.root is not None else args.manifest.resolve().parent.parent
     failed = run_jobs(jobs, root, keep_going=args.keep_going)
-    print(f"reproduce: {len(jobs)} entries, {len(failed)} failed" + (f": {', '.join(failed)}" if failed else ""))
+    print(f"reproduce: {len(jobs)} commands, {len(failed)} failed" + (f": {', '.join(failed)}" if failed else ""))
     return 1 if failed else 0
 
 
