@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +56,6 @@ class Lesson03Spec:
     n_random: int = 100  # long-generation test
     random_seconds: float = 20.0
     data_seed: int = 2017  # lesson 02's DataSpec seed
-    extra: dict = field(default_factory=dict)
 
 
 # ----------------------------------------------------------------------------- data
