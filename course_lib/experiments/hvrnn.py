@@ -290,7 +290,7 @@ def collapsed_fraction(motions: list[Motion], thresholds: tuple[float, float]) -
 
 def scores(motions: list[Motion], reference: list[Motion], classifiers: dict) -> dict:
     """IS (8 combinations and 4 actions), FID (action and style classifier features), label accuracies."""
-    from course_lib.evaluation import classifier_features, frechet_distance, inception_score, motions_to_batch
+    from course_lib.evaluation import classifier_features, fid, inception_score, motions_to_batch
 
     out = {}
     probs = {}
@@ -298,8 +298,7 @@ def scores(motions: list[Motion], reference: list[Motion], classifiers: dict) ->
         x = motions_to_batch(motions, clf.config)
         probs[task] = classifier_features(x, clf, kind="proba")
         fg, fr = classifier_features(x, clf), classifier_features(reference, clf)
-        out[f"FID_{task}"] = frechet_distance(fr.mean(0), np.cov(fr, rowvar=False), fg.mean(0),
-                                              np.cov(fg, rowvar=False))
+        out[f"FID_{task}"] = fid(fr, fg, clf)
         labels = np.array([clf.config.classes.index(getattr(m, task)) for m in motions])
         out[f"accuracy_{task}"] = float((probs[task].argmax(1) == labels).mean())
     joint = (probs["action"][:, :, None] * probs["style"][:, None, :]).reshape(len(motions), -1)

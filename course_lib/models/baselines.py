@@ -47,7 +47,7 @@ from course_lib.models.hvrnn import (
     PoseCoding,
     check_poses,
     mlp,
-    normalize_quaternions,
+    normalize_pose,
     reconstruction_loss,
     unit_norm_loss,
 )
@@ -376,12 +376,8 @@ class AttributeRnn(PoseCoding, nn.Module):
             outs.append(out)
             if t + 1 < prev.shape[1]:
                 own = torch.rand(len(prev), 1, 1) < p
-                inp = torch.where(own, self.normalized(out.detach()), prev[:, t + 1:t + 2])
+                inp = torch.where(own, normalize_pose(out.detach(), c.num_joints), prev[:, t + 1:t + 2])
         return torch.cat(outs, 1)
-
-    def normalized(self, y: torch.Tensor) -> torch.Tensor:
-        """model-space frames with their quaternions normalised (QuaterNet's normalisation layer)."""
-        return torch.cat((normalize_quaternions(y[..., :-NUM_ROOT], self.config.num_joints), y[..., -NUM_ROOT:]), -1)
 
     def loss(self, batch: dict) -> dict:
         """batch {"x": (N, T, D) raw, "action_id", "style_id"} -> {"loss", "rec", "rec_root", "ang"}."""
@@ -411,6 +407,6 @@ class AttributeRnn(PoseCoding, nn.Module):
         state, inp, outs = self._initial(combo, generator), torch.zeros(len(a), 1, self.config.pose_dim), []
         for _ in range(frames):
             out, state = self._step(inp, a, state)
-            inp = self.normalized(out)
+            inp = normalize_pose(out, self.config.num_joints)
             outs.append(inp)
         return self.from_model(torch.cat(outs, 1))

@@ -46,7 +46,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from course_lib.models.vae import linear_beta
-from course_lib.rotations import gram_schmidt, matrix_geodesic, quat_geodesic, quat_to_matrix
+from course_lib.rotations import matrix_geodesic, quat_geodesic, quat_to_matrix
 from course_lib.skeleton import Skeleton
 
 __all__ = ["DaeConfig", "DenoisingAutoencoder", "HierarchicalVrnn", "HvrnnConfig", "PoseCoding", "cl_weight",
@@ -158,22 +158,9 @@ def normalize_pose(x: torch.Tensor, num_joints: int = 21) -> torch.Tensor:
     return torch.cat((normalize_quaternions(x[..., : 4 * num_joints], num_joints), x[..., 4 * num_joints:]), -1)
 
 
-def normalize_matrices(m: torch.Tensor) -> torch.Tensor:
-    """(..., 3, 3) raw outputs -> rotations by Gram-Schmidt on the first two columns (the rotation-matrix
-    variant of sec. 3; the course trains the quaternion variant, as the paper reports)."""
-    return gram_schmidt(m)
-
-
 def unit_norm_loss(q_raw: torch.Tensor) -> torch.Tensor:
     """L_q-norm = sum_k | ||q~_k||^2 - 1 |  -- eq. (26).  q_raw: (..., J, 4) -> (...)."""
     return (q_raw.pow(2).sum(-1) - 1.0).abs().sum(-1)
-
-
-def rotation_matrix_constraints(m: torch.Tensor, c1: float = 1.0, c2: float = 1.0) -> torch.Tensor:
-    """L_ang = sum_k c1 ||R R^T - I||^2 + c2 |det R - 1|  -- eq. (25).  m: (..., J, 3, 3) -> (...)."""
-    eye = torch.eye(3, dtype=m.dtype)
-    orth = (m @ m.transpose(-1, -2) - eye).pow(2).sum((-1, -2))
-    return (c1 * orth + c2 * (torch.linalg.det(m) - 1.0).abs()).sum(-1)
 
 
 def reconstruction_loss(q: torch.Tensor, q_hat: torch.Tensor, alpha: torch.Tensor, kind: str = "d1") -> torch.Tensor:
@@ -189,12 +176,12 @@ def diag_gaussian_kl(mu_q, std_q, mu_p, std_p) -> torch.Tensor:
 
 def kl_weight(step: int, warmup: int, anneal: int) -> float:
     """lambda_KL: 0 for `warmup` steps, then linear to 1 over `anneal` steps, then 1 (sec. 3.5.1, supp. Fig. 1)."""
-    return linear_beta(max(0, step - warmup), anneal) if step >= warmup else 0.0
+    return linear_beta(max(0, step - warmup), anneal)
 
 
 def cl_weight(step: int, start: int, ramp: int, final: float) -> float:
     """lambda_CL: 0 for `start` steps, then linear to `final` over `ramp` steps (supp. Fig. 1)."""
-    return linear_beta(max(0, step - start), ramp, final) if step >= start else 0.0
+    return linear_beta(max(0, step - start), ramp, final)
 
 
 def word_drop_rate(step: int, ramp: int, final: float) -> float:
@@ -295,7 +282,6 @@ class HierarchicalVrnn(PoseCoding, nn.Module):
         self.config = c = config or HvrnnConfig()
         D, L = c.pose_dim, c.frames_per_word
         d_w = c.d_w if c.hierarchical else D
-        self.d_word = d_w
         self.f_c = nn.Linear(c.n_actions + c.n_styles, c.d_a)  # a_n = f_c(c_n)
         if c.hierarchical:  # eq. (1), (3); Table 1
             self.f_enc_w = mlp(L * D, c.mlp, 2, d_w, nn.ELU())
@@ -364,8 +350,8 @@ class HierarchicalVrnn(PoseCoding, nn.Module):
     # --- Algorithm 1 (training) -----------------------------------------------------------
 
     def cell_forward(self, w: torch.Tensor, a: torch.Tensor, h: torch.Tensor, eps: torch.Tensor | None = None):
-        """FORWARD of Algorithm 1: w_n (N, d_w), a_n (N, d_a), h_{n-1} (N, H) -> (w~_n, z_n, mu_q, sigma_q,
-        mu_p, sigma_p), before the state update (done by the caller with the word it chooses)."""
+        """FORWARD of Algorithm 1: w_n (N, d_w), a_n (N, d_a), h_{n-1} (N, H) -> (w~_n, f_w(w_n), f_z(z_n), mu_q,
+        sigma_q, mu_p, sigma_p), before the state update (done by the caller with the word it chooses)."""
         fw = self.f_w(w)
         mu_q, sd_q = self.posterior(torch.cat((fw, h, a), -1))  # eq. (5)
         eps = torch.randn_like(mu_q) if eps is None else eps
