@@ -243,11 +243,12 @@ def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_sampl
     return out
 
 
-def _rounded(d, digits: int = 6):
+def rounded(d, digits: int = 6):
+    """Results for JSON: floats rounded to ``digits`` decimals inside nested dicts/lists/tuples, keys as str."""
     if isinstance(d, dict):
-        return {str(k): _rounded(v, digits) for k, v in d.items()}
-    if isinstance(d, list):
-        return [_rounded(v, digits) for v in d]
+        return {str(k): rounded(v, digits) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [rounded(v, digits) for v in d]
     return round(d, digits) if isinstance(d, float) else d
 
 
@@ -261,7 +262,7 @@ def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = 
     out = lesson02_tables(models, test_ds, seed)
     out["prior_diversity"] = prior_diversity(models["vae_lstm"], test_ds, seed=seed)
     out["eval_seconds"] = round(time.perf_counter() - t0, 1)
-    return _rounded(out)
+    return rounded(out)
 
 
 def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True, only=None,

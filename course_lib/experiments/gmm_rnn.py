@@ -3,6 +3,7 @@ stand-in for the paper's user study (Fig. 12).
 
     python -m course_lib.reproduce gmm_rnn              # data, RNN, GAN1/GAN2 x 3 seeds, evaluation -> JSON
     python -m course_lib.reproduce gmm_rnn --eval-only  # the evaluation from checkpoints/ only
+    python -m course_lib.reproduce gmm_rnn --only gans  # keep the RNN checkpoint, retrain the refiners
 
 Data: lesson 02's synthetic locomotion clips (course_lib.reproduce.DataSpec: 400 clips of 4 s, 10
 subjects, 3 held out) resampled to 30 fps and encoded as ``state_features`` (eq. 3 + 2 contact bits).
@@ -26,6 +27,7 @@ import torch
 from course_lib.datasets import WindowDataset, load_stats
 from course_lib.motion import Motion
 from course_lib.representations import decode_state_features, encode_state_features, root_start
+from course_lib.reproduce import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"
@@ -51,7 +53,7 @@ class Lesson03Spec:
     max_r_updates: int = 40  # cap on R's adaptive update count per round (the paper has none)
     pool_sequences: int = 320  # RNN motions generated once for refiner training
     pool_frames: int = 240  # frames per pooled RNN motion (8 s)
-    seeds: tuple = (0, 1, 2)  # refiner seeds; the checkpoints are seed seeds[0]
+    seeds: tuple = (0, 1, 2)  # refiner seeds, one checkpoint per seed and refiner
     eval_seconds: float = 4.0  # generated length compared with the 4-s held-out clips
     n_random: int = 100  # long-generation test
     random_seconds: float = 20.0
@@ -182,16 +184,12 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
     """For each clip: the RNN continues its first two frames for spec.eval_seconds; each refiner refines
     that -> {"RNN": features, name: features, ...} normalised (N, T, D)."""
     T = int(round(spec.eval_seconds * spec.fps))
-    x0 = torch.from_numpy(np.stack([(_features(m)[:2] - stats[0]) / stats[1] for m in clips])).float()
+    x0 = torch.from_numpy(np.stack([(encode_state_features(m)[:2] - stats[0]) / stats[1] for m in clips])).float()
     out = {"RNN": model.generate(x0, T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
                                  bias=spec.sample_bias)}
     with torch.no_grad():
         out.update({name: r(out["RNN"]) for name, r in refiners.items()})
     return out
-
-
-def _features(m: Motion) -> np.ndarray:
-    return encode_state_features(m)
 
 
 def foot_skate_of(positions: np.ndarray, fps: float) -> float:
@@ -259,10 +257,13 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
                     seed: int = 0) -> dict:
     """spec.n_random motions of spec.random_seconds from start's first two frames, RNN and refined.
 
-    -> per set: NaN count, root-height range vs the mocap's, freezing (motions whose last-5-s joint-speed
-    variance is under `freeze_floor`), APD (m) over the whole motion and the features (for plots)."""
+    -> the mocap's root-height range and freeze floor, and per set ("RNN", "GAN2"): NaN count, root-height range,
+    motions whose root height stays within the data's range +- 5 cm (all 20 s / first 10 s), freezing (motions
+    whose last-5-s joint-speed variance is under `freeze_floor`) and APD (m) over the whole motion."""
+    from course_lib.evaluation import apd
+
     T = int(round(spec.random_seconds * spec.fps))
-    x0 = torch.from_numpy((_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
+    x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
     rnn = model.generate(x0.contiguous(), T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
                          bias=spec.sample_bias)
     with torch.no_grad():
@@ -276,8 +277,6 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
         pos = np.stack([m.positions() for m in motions])  # (N, T, J, 3)
         h = pos[:, :, 0, 1]
         var = joint_speed(pos[:, -last:], spec.fps).var(-1)  # (N,)
-        from course_lib.evaluation import apd
-
         lo, hi = out["data_root_height"]
         inside = (h >= lo - 0.05) & (h <= hi + 0.05)  # (N, T): within the data's range +- 5 cm
         out[name] = {"nan_motions": nan, "root_height": [float(h.min()), float(h.max())],
@@ -308,14 +307,6 @@ def load_models(checkpoints: Path = CHECKPOINTS, seed: int = 0) -> tuple:
     refiners = {name: load_checkpoint(checkpoints / refiner_file(name, seed), Refiner, RefinerConfig)
                 for name in ("GAN1", "GAN2")}
     return load_models_rnn(checkpoints), refiners, load_stats(_stats_path(checkpoints), "state_features")
-
-
-def _rounded(d, digits: int = 6):
-    if isinstance(d, dict):
-        return {str(k): _rounded(v, digits) for k, v in d.items()}
-    if isinstance(d, (list, tuple)):
-        return [_rounded(v, digits) for v in d]
-    return round(d, digits) if isinstance(d, float) else d
 
 
 def evaluate(model, refiners: dict, stats, spec: Lesson03Spec, test: list[Motion], seed: int = 0) -> dict:
@@ -350,7 +341,7 @@ def eval_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool
     """The evaluation of every refiner seed from the shipped checkpoints -> JSON-able dict (nothing is written)."""
     spec = spec or Lesson03Spec()
     _, test, _ = lesson03_data(spec, progress)
-    return _rounded(evaluate_seeds(spec, test, seed, checkpoints))
+    return rounded(evaluate_seeds(spec, test, seed, checkpoints))
 
 
 _GAN_KEYS = ("seconds", "rounds", "final_d_loss", "final_adversarial", "final_root", "final_d_acc_fake",
@@ -376,7 +367,7 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
     if only and not set(only) <= {"gans", "eval"}:
         raise ValueError(f"gmm_rnn: --only takes 'gans' or 'eval', got {only}")
     t0 = time.perf_counter()
-    train, test, ds = lesson03_data(spec, progress)
+    _, test, ds = lesson03_data(spec, progress)
     checkpoints.mkdir(parents=True, exist_ok=True)
     common = {"data_seed": spec.data_seed, "train_seed": seed, "train_windows": len(ds), "test_clips": len(test)}
     if not only:
@@ -384,10 +375,10 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
         print(f"GMM-RNN: {hist}", file=sys.stderr)
         ds.save_stats(_stats_path(checkpoints))
         save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=COMMAND, overwrite=True, metrics={
-            **common, **_rounded({"seconds": hist.seconds, "steps": hist.num_steps, "final_nll": hist.final("loss", 50),
+            **common, **rounded({"seconds": hist.seconds, "steps": hist.num_steps, "final_nll": hist.final("loss", 50),
                                   "finetune_seconds": ft.seconds, "finetune_steps": ft.num_steps,
                                   "finetune_final_nll": ft.final("loss", 50) if ft.num_steps else None}),
-            "spec": _rounded(asdict(spec)), "loss_every_20_steps": _every_20(hist),
+            "spec": rounded(asdict(spec)), "loss_every_20_steps": _every_20(hist),
             "finetune_loss_every_20_steps": _every_20(ft)})
     if not only or "gans" in only:
         model = load_models_rnn(checkpoints)
@@ -396,9 +387,9 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
             for name in ("GAN1", "GAN2"):
                 refiner, _, h = train_gan(pool, ds, spec, contacts=name == "GAN2", seed=s, progress=progress)
                 save_checkpoint(refiner, refiner.config, checkpoints / refiner_file(name, s), command=COMMAND,
-                                overwrite=True, metrics={**common, "refiner_seed": s, **_rounded(_gan_summary(h)),
-                                                         "history": _rounded(_history_dict(h), 5)})
-    results = _rounded(evaluate_seeds(spec, test, seed, checkpoints))
+                                overwrite=True, metrics={**common, "refiner_seed": s, **rounded(_gan_summary(h)),
+                                                         "history": rounded(_history_dict(h), 5)})
+    results = rounded(evaluate_seeds(spec, test, seed, checkpoints))
     results["seconds"] = round(time.perf_counter() - t0, 1)
     record_results(results, checkpoints)
     return results
@@ -428,7 +419,7 @@ def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
 def _every_20(hist) -> list:
     """A training curve thinned to one mean per 20 steps (for the manifest)."""
     loss = hist.step.get("loss", [])
-    return _rounded([float(np.mean(loss[i:i + 20])) for i in range(0, len(loss), 20)], 4)
+    return rounded([float(np.mean(loss[i:i + 20])) for i in range(0, len(loss), 20)], 4)
 
 
 def _history_dict(hist) -> dict:
