@@ -249,7 +249,7 @@ def rounded(d, digits: int = 6):
         return {str(k): rounded(v, digits) for k, v in d.items()}
     if isinstance(d, (list, tuple)):
         return [rounded(v, digits) for v in d]
-    return round(d, digits) if isinstance(d, float) else d
+    return round(float(d), digits) if isinstance(d, (float, np.floating)) else d
 
 
 def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True,

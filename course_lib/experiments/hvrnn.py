@@ -34,6 +34,7 @@ import torch
 
 from course_lib.datasets import ACTIONS, STYLES
 from course_lib.motion import Motion
+from course_lib.reproduce import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"
@@ -349,15 +350,7 @@ def eval_hvrnn(seed: int = 0, progress: bool = True, checkpoints: Path = CHECKPO
     real_train = to_motions(data["train"])
     out = evaluate(generated, real_test, real_train)
     out["eval_seconds"] = round(time.perf_counter() - t0, 1)
-    return _rounded(out)
-
-
-def _rounded(d, digits: int = 4):
-    if isinstance(d, dict):
-        return {str(k): _rounded(v, digits) for k, v in d.items()}
-    if isinstance(d, (list, tuple)):
-        return [_rounded(v, digits) for v in d]
-    return round(float(d), digits) if isinstance(d, (float, np.floating)) else d
+    return rounded(out, 4)
 
 
 def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Path = CHECKPOINTS,
