@@ -9,8 +9,8 @@ Data: lesson 02's synthetic locomotion clips (course_lib.reproduce.DataSpec: 400
 subjects, 3 held out) resampled to 30 fps and encoded as ``state_features`` (eq. 3 + 2 contact bits).
 Models: the GMM-RNN (sec. 4.1), GAN1 (refiner without contact awareness) and GAN2 (contact-aware
 refiner, sec. 4.3), each refiner trained for three seeds.  Evaluation: for every held-out clip the RNN
-continues its first two frames for 4 s; GAN1/GAN2 refine that motion; "GAN2 + foot lock" adds the
-contact clean-up.  Rows Mocap / RNN / GAN1 / GAN2 get foot skate, jitter, FID, IS and the two-sample
+continues its first two frames for 4 s; GAN1/GAN2 refine that motion; "GAN2 + contacts" adds the
+contact handling (models/contact_cleanup.py: the predicted contacts enforced on the root).  Rows Mocap / RNN / GAN1 / GAN2 get foot skate, jitter, FID, IS and the two-sample
 accuracy against the held-out mocap.  Long generation: 100 motions of 20 s from one start frame.
 """
 
@@ -31,7 +31,7 @@ from course_lib.reproduce import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"
-ROWS = ("Mocap", "RNN", "GAN1", "GAN2", "GAN2 + foot lock")
+ROWS = ("Mocap", "RNN", "GAN1", "GAN2", "GAN2 + contacts")
 COMMAND = "python -m course_lib.reproduce gmm_rnn"
 
 
@@ -43,9 +43,11 @@ class Lesson03Spec:
     rnn_steps: int = 6000  # teacher forcing on 50-frame windows, batch 20 (sec. 4.1.3); ~14 epochs
     # then fine-tuning stages (true frames, own predictions, steps): inputs alternate true frames and the
     # model's own predictions (not in the paper; see gmm_rnn.py "differs")
-    finetune: tuple = ((10, 10, 1000),)
+    finetune: tuple = ()  # e.g. ((10, 10, 1000),); with absolute root means it hurt (tools/gmm_rnn_sweep.py)
     finetune_lr: float = 5e-4
-    sample_bias: float = 1.0  # Graves' sampling bias at generation (0 = the paper's sampling)
+    sample_bias: float = 2.0  # Graves' sampling bias at generation (0 = the paper's sampling)
+    # columns with absolute means (root height, pitch, roll, contact bits); the rest residual (gmm_rnn.py "differs")
+    rnn_absolute_dims: tuple = (3, 4, 5, 66, 67)
     window_stride: int = 5  # frames between training windows
     rnn_noise: float = 0.05  # sd of the input noise, normalised units (sec. 4.1.3: 0.05)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
@@ -97,7 +99,7 @@ def window_sampler(features: list[np.ndarray], length: int, batch: int, generato
 
 
 def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int | None = None,
-              finetune_steps: int | None = None, progress: bool = True):
+              finetune_steps: int | None = None, progress: bool = True, config=None, device: str = "cpu"):
     """The GMM-RNN of sec. 4.1 on ds's windows -> (model, History, fine-tuning History).
 
     Teacher forcing with input noise, RMSProp lr 1e-3 x 0.95 per epoch (sec. 4.1.3); then the stages of
@@ -106,10 +108,13 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
     from course_lib.training import History, fit
 
-    config = GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise)
+    config = config or GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims)
     torch.manual_seed(seed)
-    model = GmmRnn(config)
-    sample = window_sampler(ds.features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
+    model = GmmRnn(config).to(device)
+    cpu_sample = window_sampler(ds.features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
+
+    def sample() -> torch.Tensor:
+        return cpu_sample().to(device)
     steps_per_epoch = max(1, len(ds) // config.batch_size)
     hist = fit(model, sample, steps=spec.rnn_steps if steps is None else steps, lr=config.lr, optimizer="rmsprop",
                lr_schedule=config.lr_factor, steps_per_epoch=steps_per_epoch, progress=progress, seed=seed,
@@ -124,7 +129,7 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
             for v in stage.step["loss"]:
                 ft.log_step({"loss": v})
             ft.seconds += stage.seconds
-    model.eval()
+    model.cpu().eval()
     return model, hist, ft
 
 
@@ -172,12 +177,15 @@ def to_motions(features: torch.Tensor, stats, like: list[Motion], fps: float) ->
     return [decode_state_features(f, m.skeleton, fps, root_start(m)) for f, m in zip(raw, like, strict=True)]
 
 
-def locked(motions: list[Motion], features: torch.Tensor, stats) -> np.ndarray:
-    """The foot-lock clean-up (sec. 4.3) on motions, driven by the predicted contact bits -> (N, T, J, 3)."""
-    from course_lib.models.refiner import foot_lock
+def with_contacts(features: torch.Tensor, stats, like: list[Motion]) -> torch.Tensor:
+    """Sec. 4.3's contact handling on normalised features (N, T, D): the predicted contact bits enforced on
+    the root (contact_cleanup.enforce_contacts), motion i on like[i]'s skeleton -> normalised (N, T, D)."""
+    from course_lib.models.contact_cleanup import enforce_contacts
 
-    contacts = features[..., -2:].double().numpy() * stats[1][-2:] + stats[0][-2:]
-    return np.stack([foot_lock(m.positions(), c, m.skeleton) for m, c in zip(motions, contacts, strict=True)])
+    mean, std = stats
+    raw = features.double().numpy() * std + mean
+    fixed = np.stack([enforce_contacts(r, m.skeleton) for r, m in zip(raw, like, strict=True)])
+    return torch.from_numpy((fixed - mean) / std).to(features.dtype)
 
 
 def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesson03Spec, seed: int = 0) -> dict:
@@ -200,15 +208,11 @@ def foot_skate_of(positions: np.ndarray, fps: float) -> float:
     return foot_skate(pos[None] if pos.ndim == 3 else pos, fps=fps)
 
 
-def quality_row(motions, mocap: list[Motion], positions: np.ndarray | None = None, fps: float = 30.0,
-                seed: int = 0) -> dict:
-    """Foot skate (m/s), jitter (m/s^3), FID, IS and two-sample accuracy of a set against mocap.
-
-    positions (N, T, J, 3): measure skate and jitter on these (the foot-locked joints) instead of the
-    motions' own; the classifier metrics always use the motions (the clean-up moves only the feet)."""
+def quality_row(motions, mocap: list[Motion], fps: float = 30.0, seed: int = 0) -> dict:
+    """Foot skate (m/s), jitter (m/s^3), FID, IS and two-sample accuracy of a set against mocap."""
     from course_lib.evaluation import fid, foot_skate, inception_score, jitter, two_sample_accuracy
 
-    pos = positions if positions is not None else np.stack([m.positions() for m in motions])
+    pos = np.stack([m.positions() for m in motions])
     return {"foot_skate": foot_skate(pos, fps=fps), "jitter": jitter(pos, fps=fps),
             "fid": fid(mocap, motions), "is": inception_score(motions),
             "two_sample": two_sample_accuracy(mocap, motions, seed=seed)}
@@ -225,12 +229,12 @@ def quality_table(model, refiners: dict, test: list[Motion], stats, spec: Lesson
     half = np.random.default_rng(seed).permutation(len(mocap))
     a, b = [mocap[i] for i in half[: len(half) // 2]], [mocap[i] for i in half[len(half) // 2:]]
     rows = {"Mocap": quality_row(b, a, fps=spec.fps, seed=seed)}  # one half of the clips against the other
+    if "GAN2" in sets:
+        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, test)
     for name, feats in sets.items():
         motions = to_motions(feats, stats, test, spec.fps)
         rows[name] = quality_row(motions, mocap, fps=spec.fps, seed=seed)
         rows[name]["contact_agreement"] = contact_agreement(motions, feats, stats)
-        if name == "GAN2":
-            rows["GAN2 + foot lock"] = quality_row(motions, mocap, locked(motions, feats, stats), spec.fps, seed)
     return rows
 
 
@@ -268,6 +272,7 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
                          bias=spec.sample_bias)
     with torch.no_grad():
         sets = {"RNN": rnn, "GAN2": refiner(rnn)}
+    sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn))
     heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
     floor, last = freeze_floor(mocap), int(5 * spec.fps)
     out = {"data_root_height": [float(heights.min()), float(heights.max())], "freeze_floor": floor, "frames": T}

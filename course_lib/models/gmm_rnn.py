@@ -77,6 +77,7 @@ class GmmRnnConfig:
     contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits (last two of state_features)
     residual: bool = False  # mu_i = x_t + mu_hat_i instead of mu_hat_i (see "differs"); the paper: False
     self_feed: tuple[int, int] | None = None  # (k, m): k true frames then m own samples as inputs, repeated
+    absolute_dims: tuple[int, ...] = ()  # with residual=True: columns whose means stay absolute, mu_i = mu_hat_i
 
     @classmethod
     def cpu(cls, **overrides) -> GmmRnnConfig:
@@ -95,6 +96,9 @@ class GmmRnnConfig:
         if self.grad_clip_value is not None and self.grad_clip_value <= 0:
             raise ValueError(f"GmmRnnConfig: grad_clip_value must be > 0 or None, got {self.grad_clip_value}")
         self.contact_dims = tuple(int(c) for c in self.contact_dims)
+        self.absolute_dims = tuple(int(c) for c in self.absolute_dims)
+        if any(not 0 <= c < self.dim for c in self.absolute_dims):
+            raise ValueError(f"GmmRnnConfig: absolute_dims {self.absolute_dims} outside 0..{self.dim - 1}")
         if any(not 0 <= c < self.dim for c in self.contact_dims):
             raise ValueError(f"GmmRnnConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
         if self.self_feed is not None:
@@ -153,10 +157,16 @@ class GmmRnn(nn.Module):
         logits = raw[..., :M]  # w_hat
         mu = raw[..., M: M + M * D].reshape(N, T, M, D)  # mu = mu_hat                     -- eq. (7)
         if self.config.residual:
-            mu = mu + x.unsqueeze(-2)  # mu_i = x_t + mu_hat_i: the network predicts the change
+            mu = mu + (x * self._residual_mask(x)).unsqueeze(-2)  # mu_i = x_t + mu_hat_i: the change is predicted
         # sigma = exp(sigma_hat), floored at min_std (see "differs")                         -- eq. (7)
         log_sigma = raw[..., M + M * D:].reshape(N, T, M, D).clamp(min=math.log(self.config.min_std))
         return {"logits": logits, "mu": mu, "log_sigma": log_sigma}, state
+
+    def _residual_mask(self, x: torch.Tensor) -> torch.Tensor:
+        """(D,) 1 for residual columns, 0 for ``absolute_dims``."""
+        mask = torch.ones(self.config.dim, dtype=x.dtype, device=x.device)
+        mask[list(self.config.absolute_dims)] = 0.0
+        return mask
 
     def loss(self, batch, noise: torch.Tensor | None = None) -> dict:
         """batch: (N, T, D) or {"x": ...} normalised windows -> {"loss", "nll"}: eq. (8) per frame.
@@ -192,7 +202,7 @@ class GmmRnn(nn.Module):
             out.append(mixture_log_prob(targets[:, t], **params))
             with torch.no_grad():  # the own prediction: the mean of the most likely component
                 top = params["logits"].argmax(-1)
-                own = params["mu"][torch.arange(len(top)), top].detach()
+                own = params["mu"][torch.arange(len(top), device=top.device), top].detach()
         return torch.stack(out, dim=1)
 
     # --- generation (sec. 4.1.4) ----------------------------------------------------------

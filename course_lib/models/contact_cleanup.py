@@ -1,0 +1,105 @@
+"""Contact handling for generated motion (Wang, Chai et al. 2021, sec. 4.3 and the "adjacent" and
+"point-plane" parts of the contact term of eq. (18)).
+
+Taught in notebooks/03_gmm_rnn_refiner.ipynb.
+
+The contact-aware models label every generated frame with contact bits c = [c_l, c_r].  The paper uses
+them "to automatically enforce environmental contact constraints in output motion": a foot in contact
+stays where it is (adjacent frames) and on the floor (point-plane).  `enforce_contacts` does both on the
+state features themselves, so the result is still a motion of the same skeleton (bone lengths kept,
+joint angles untouched):
+
+- stance foot: among the feet whose bit is on, the lower toe (a mislabelled swinging foot is higher);
+- point-plane: the root height moves so that the stance toe is at ``toe_floor``; frames without contact
+  (flight) get the correction linearly interpolated from the nearest contact frames;
+- adjacent: when the stance foot is in contact on frames t-1 and t, the root's floor step is replaced by
+  the one that keeps that toe's world (x, z) fixed: p_t - p_{t-1} = -(R_y(yaw_t) l_t - R_y(yaw_{t-1}) l_{t-1}),
+  l the toe's floor-frame (x, z); heading and pose are unchanged.
+
+The paper gives no algorithm for this step (its MAP control solves the same terms as soft Gaussian
+penalties, eq. (18)); enforcing them exactly on the root is our reading, see the lesson's table.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from course_lib.skeleton import Skeleton
+
+__all__ = ["TOE_FLOOR", "enforce_contacts", "toe_floor_height"]
+
+TOE_FLOOR = 0.025  # m: the synthetic skeletons' toe joint height when the foot is planted (`toe_floor_height`)
+
+
+def toe_floor_height(motions) -> float:
+    """The median toe height (m) over the frames where mocap labels that foot in contact."""
+    heights = []
+    for m in motions:
+        p, c = m.positions(), m.contacts()
+        for side, toe in enumerate(m.skeleton.feet[1::2]):
+            heights.append(p[c[:, side], toe, 1])
+    heights = np.concatenate(heights) if heights else np.zeros(0)
+    if heights.size == 0:
+        raise ValueError("toe_floor_height: no foot contact in the motions")
+    return float(np.median(heights))
+
+
+def _interpolate_gaps(values: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """values (T,), known (T,) bool -> values with the unknown frames linearly interpolated (held at the ends);
+    all zeros if nothing is known."""
+    if not known.any():
+        return np.zeros_like(values)
+    t = np.arange(len(values))
+    return np.interp(t, t[known], values[known])
+
+
+def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR, threshold: float = 0.5):
+    """Raw state features (..., T, D) with contact bits -> the same with root height and floor steps corrected
+    so that the stance toe stays on the floor and does not slide (see the module docstring).
+
+    Works on numpy arrays or torch tensors (returns the same type); joint angles, heading and contact
+    bits are returned unchanged."""
+    from course_lib.models.refiner import _check_features, local_positions
+
+    is_torch = torch.is_tensor(features)
+    f = features.detach().double() if is_torch else torch.as_tensor(np.asarray(features, dtype=np.float64))
+    _check_features(f, skeleton)
+    if f.shape[-2] < 2:
+        raise ValueError(f"enforce_contacts needs T >= 2 frames, got {f.shape[-2]}")
+    lead, (T, D) = f.shape[:-2], f.shape[-2:]
+    flat = f.reshape(-1, T, D)
+    with torch.no_grad():
+        toes = local_positions(flat, skeleton)[..., list(skeleton.feet[1::2]), :].numpy()  # (N, T, 2, 3)
+    out = flat.numpy().copy()
+    bits = out[..., -2:] > threshold  # (N, T, 2)
+    for n in range(len(out)):
+        out[n] = _enforce_one(out[n], toes[n], bits[n], toe_floor)
+    out = out.reshape(*lead, T, D)
+    return torch.as_tensor(out, dtype=features.dtype) if is_torch else out
+
+
+def _enforce_one(f: np.ndarray, toes: np.ndarray, bits: np.ndarray, toe_floor: float) -> np.ndarray:
+    """One motion: f (T, D) raw features, toes (T, 2, 3) floor-frame toe positions, bits (T, 2) -> f corrected."""
+    T = len(f)
+    toe_y = np.where(bits, toes[..., 1], np.inf)  # only flagged feet can be the stance foot
+    stance = toe_y.argmin(1)  # (T,) the lower flagged toe
+    any_contact = bits.any(1)
+    # point-plane: root height so that the stance toe sits at toe_floor (toes[..., 1] includes the root height)
+    lift = _interpolate_gaps(toe_floor - toe_y[np.arange(T), np.where(any_contact, stance, 0)], any_contact)
+    f[:, 3] += lift
+    # adjacent: keep the stance toe's world (x, z) between consecutive contact frames
+    yaw = np.concatenate(([0.0], np.cumsum(f[1:, 2])))  # relative headings suffice for the steps
+    c, s = np.cos(yaw), np.sin(yaw)
+    for t in range(1, T):
+        k = stance[t]
+        if not (bits[t, k] and bits[t - 1, k]):
+            continue
+        lx, lz = toes[t, k, 0], toes[t, k, 2]
+        px, pz = toes[t - 1, k, 0], toes[t - 1, k, 2]
+        step_x = -((c[t] * lx + s[t] * lz) - (c[t - 1] * px + s[t - 1] * pz))  # world step, R_y as _rot_y
+        step_z = -((-s[t] * lx + c[t] * lz) - (-s[t - 1] * px + c[t - 1] * pz))
+        # back into frame t-1's floor frame: R_y(-yaw_{t-1})
+        f[t, 0] = c[t - 1] * step_x - s[t - 1] * step_z
+        f[t, 1] = s[t - 1] * step_x + c[t - 1] * step_z
+    return f

@@ -1,0 +1,70 @@
+"""Contact handling (course_lib/models/contact_cleanup.py): the predicted contacts enforced on the root."""
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.datasets import generate_locomotion_set
+from course_lib.evaluation import foot_skate
+from course_lib.models.contact_cleanup import TOE_FLOOR, enforce_contacts, toe_floor_height
+from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+
+@pytest.fixture(scope="module")
+def clip():
+    return generate_locomotion_set(2, seed=5, fps=30.0, duration=3.0, n_subjects=2)[0]
+
+
+def decoded(features, clip):
+    return decode_state_features(features, clip.skeleton, clip.fps, root_start(clip))
+
+
+def test_mocap_is_left_almost_unchanged(clip):
+    f = encode_state_features(clip)
+    g = enforce_contacts(f, clip.skeleton)
+    assert np.array_equal(g[:, 2:3], f[:, 2:3]) and np.array_equal(g[:, 4:], f[:, 4:])  # yaw, tilt, angles, bits
+    assert np.abs(g[:, 3] - f[:, 3]).max() < 0.003  # the data's planted toes are within 3 mm of TOE_FLOOR
+    assert np.abs(decoded(g, clip).positions() - clip.positions()).max() < 0.01
+
+
+def test_sliding_sunken_motion_is_repaired(clip):
+    f = encode_state_features(clip)
+    bad = f.copy()
+    rng = np.random.default_rng(0)
+    bad[1:, 0:2] += rng.normal(0, 0.01, (len(f) - 1, 2))  # the root slides: ~0.4 m/s of noise at 30 fps
+    bad[:, 3] -= 0.08  # and sinks 8 cm: the feet go into the floor
+    g = enforce_contacts(bad, clip.skeleton)
+    assert foot_skate([decoded(bad, clip)]) > 0.2
+    fixed = decoded(g, clip)
+    assert foot_skate([fixed]) < 0.05
+    pos, bits, toes = fixed.positions(), g[:, -2:] > 0.5, list(clip.skeleton.feet[1::2])
+    lowest_flagged = np.where(bits, pos[:, toes, 1], np.inf).min(1)
+    flagged = bits.any(1)
+    assert np.allclose(lowest_flagged[flagged], TOE_FLOOR, atol=1e-6)  # point-plane: stance toe on the floor
+    for side, toe in enumerate(toes):  # adjacent: a stance toe kept in contact does not move
+        still = bits[1:, side] & bits[:-1, side] & (pos[1:, toe, 1] <= pos[1:, toes[1 - side], 1])
+        still &= pos[:-1, toe, 1] <= pos[:-1, toes[1 - side], 1]
+        assert still.any()
+        step = np.linalg.norm(np.diff(pos[:, toe][:, [0, 2]], axis=0), axis=-1)
+        assert step[still].max() < 1e-6
+
+
+def test_torch_batches_and_bad_input(clip):
+    f = torch.from_numpy(np.stack([encode_state_features(clip)] * 2)).float()
+    g = enforce_contacts(f, clip.skeleton)
+    assert torch.is_tensor(g) and g.dtype == torch.float32 and g.shape == f.shape
+    assert torch.allclose(g[0], g[1])
+    with pytest.raises(ValueError, match="state features for 21 joints"):
+        enforce_contacts(f[..., :-1], clip.skeleton)
+    nan = f.clone()
+    nan[0, 3, 7] = float("nan")
+    with pytest.raises(ValueError, match="NaN"):
+        enforce_contacts(nan, clip.skeleton)
+    with pytest.raises(ValueError, match="T >= 2"):
+        enforce_contacts(f[:, :1], clip.skeleton)
+
+
+def test_toe_floor_height_matches_the_constant(clip):
+    assert toe_floor_height([clip]) == pytest.approx(TOE_FLOOR, abs=0.002)
+    with pytest.raises(ValueError, match="no foot contact"):
+        toe_floor_height([])
