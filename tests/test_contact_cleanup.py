@@ -60,6 +60,10 @@ def test_torch_batches_and_bad_input(clip):
     nan[0, 3, 7] = float("nan")
     with pytest.raises(ValueError, match="NaN"):
         enforce_contacts(nan, clip.skeleton)
+    with pytest.raises(ValueError, match="smooth must be an odd int"):
+        enforce_contacts(f, clip.skeleton, smooth=2)
+    smoothed = enforce_contacts(f, clip.skeleton, smooth=5)
+    assert torch.equal(smoothed[..., 4:], f[..., 4:])  # only the root's floor steps and height move
     with pytest.raises(ValueError, match="T >= 2"):
         enforce_contacts(f[:, :1], clip.skeleton)
 

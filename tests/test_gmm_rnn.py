@@ -144,6 +144,21 @@ def test_residual_means_start_from_the_input():
     assert not GmmRnnConfig().residual and GmmRnnConfig.cpu().residual  # the paper's output is not residual
 
 
+def test_absolute_dims_keep_their_means_absolute():
+    """absolute_dims: those columns predict mu_hat itself (root height, tilt, contacts in lesson 03)."""
+    m = GmmRnn(tiny(residual=True, absolute_dims=(3, 66, 67)))
+    with torch.no_grad():
+        m.out.weight.zero_()
+        m.out.bias.zero_()
+    x = torch.randn(2, 5, 68)
+    mu = m(x)[0]["mu"]  # (2, 5, M, 68)
+    assert torch.equal(mu[..., [3, 66, 67]], torch.zeros(2, 5, 5, 3))
+    keep = [i for i in range(68) if i not in (3, 66, 67)]
+    assert torch.equal(mu[..., keep], x[..., keep].unsqueeze(-2).expand(-1, -1, 5, -1))
+    with pytest.raises(ValueError, match="absolute_dims"):
+        GmmRnnConfig(absolute_dims=(68,))
+
+
 def test_sampling_bias_shrinks_the_spread():
     """Graves' bias b: sigma * exp(-b) and sharper weights; b = 0 is the paper's sampling."""
     m = GmmRnn(tiny())

@@ -27,10 +27,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 ROOT_DIMS = (0, 1, 2, 3, 4, 5)
 CONTACTS = (66, 67)
 TILT = (3, 4, 5) + CONTACTS  # absolute root height, pitch, roll and contacts; residual velocities and angles
-HYBRID = ROOT_DIMS + CONTACTS  # absolute means for the root and the contact bits, residual for the angles
+HYBRID = ROOT_DIMS + CONTACTS
+POSE = tuple(range(3, 68))  # only the root's floor velocities (dx, dz, dyaw) residual  # absolute means for the root and the contact bits, residual for the angles
 
 VARIANTS = {
-    "base": {},
+    "base": {"config": {"absolute_dims": ()}, "spec": {"finetune": ((10, 10, 1000),)}},
     "steps12k": {"spec": {"rnn_steps": 12000}},
     "steps24k": {"spec": {"rnn_steps": 24000}},
     "hybrid": {"config": {"absolute_dims": HYBRID}},
@@ -54,6 +55,13 @@ VARIANTS = {
     "tilt_abs_window100": {"config": {"absolute_dims": TILT, "window": 100}},
     "contacts_abs": {"config": {"absolute_dims": CONTACTS}},
     "noft": {"spec": {"finetune": ()}},
+    "pose_abs": {"config": {"absolute_dims": POSE}},
+    "pose_abs12k": {"config": {"absolute_dims": POSE}, "spec": {"rnn_steps": 12000}},
+    "paper_means": {"config": {"residual": False}},
+    "tilt_abs_noise01": {"config": {"absolute_dims": TILT}, "spec": {"rnn_noise": 0.1}},
+    "tilt_abs12k": {"config": {"absolute_dims": TILT}, "spec": {"rnn_steps": 12000}},
+    "tilt_abs_w100_noft": {"config": {"absolute_dims": TILT, "window": 100}},
+    "pose_abs_ft": {"config": {"absolute_dims": POSE}, "spec": {"finetune": ((10, 10, 1000),)}},
     "hybrid_noft": {"config": {"absolute_dims": HYBRID}, "spec": {"finetune": ()}},
 }
 
@@ -83,6 +91,7 @@ def evaluate_rnn(model, test, stats, spec, biases=(1.0, 2.0)) -> dict:
                          "fid": fid(mocap, motions), "contact_agreement": contact_agreement(motions, f, stats)}
         lg = long_generation(model, torch.nn.Identity(), test[0], stats, replace(spec, sample_bias=b), test)
         row["long"] = {k: lg["RNN"][k] for k in ("nan_motions", "in_range_motions", "in_range_first_10s",
+                                                   "grounded_motions", "grounded_first_10s", "grounded_frames",
                                                    "frozen", "root_height", "apd_m")}
         out[f"bias{b:g}"] = row
     return out

@@ -46,8 +46,9 @@ class Lesson03Spec:
     finetune: tuple = ()  # e.g. ((10, 10, 1000),); with absolute root means it hurt (tools/gmm_rnn_sweep.py)
     finetune_lr: float = 5e-4
     sample_bias: float = 2.0  # Graves' sampling bias at generation (0 = the paper's sampling)
-    # columns with absolute means (root height, pitch, roll, contact bits); the rest residual (gmm_rnn.py "differs")
-    rnn_absolute_dims: tuple = (3, 4, 5, 66, 67)
+    # columns with absolute means: all but the root's floor velocities dx, dz, dyaw (gmm_rnn.py "differs")
+    rnn_absolute_dims: tuple = tuple(range(3, 68))
+    contact_smooth: int = 5  # frames over which the contact handling's root corrections are averaged
     window_stride: int = 5  # frames between training windows
     rnn_noise: float = 0.05  # sd of the input noise, normalised units (sec. 4.1.3: 0.05)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
@@ -177,14 +178,15 @@ def to_motions(features: torch.Tensor, stats, like: list[Motion], fps: float) ->
     return [decode_state_features(f, m.skeleton, fps, root_start(m)) for f, m in zip(raw, like, strict=True)]
 
 
-def with_contacts(features: torch.Tensor, stats, like: list[Motion]) -> torch.Tensor:
+def with_contacts(features: torch.Tensor, stats, like: list[Motion], smooth: int = 1) -> torch.Tensor:
     """Sec. 4.3's contact handling on normalised features (N, T, D): the predicted contact bits enforced on
-    the root (contact_cleanup.enforce_contacts), motion i on like[i]'s skeleton -> normalised (N, T, D)."""
+    the root (contact_cleanup.enforce_contacts, corrections averaged over ``smooth`` frames), motion i on
+    like[i]'s skeleton -> normalised (N, T, D)."""
     from course_lib.models.contact_cleanup import enforce_contacts
 
     mean, std = stats
     raw = features.double().numpy() * std + mean
-    fixed = np.stack([enforce_contacts(r, m.skeleton) for r, m in zip(raw, like, strict=True)])
+    fixed = np.stack([enforce_contacts(r, m.skeleton, smooth=smooth) for r, m in zip(raw, like, strict=True)])
     return torch.from_numpy((fixed - mean) / std).to(features.dtype)
 
 
@@ -230,7 +232,7 @@ def quality_table(model, refiners: dict, test: list[Motion], stats, spec: Lesson
     a, b = [mocap[i] for i in half[: len(half) // 2]], [mocap[i] for i in half[len(half) // 2:]]
     rows = {"Mocap": quality_row(b, a, fps=spec.fps, seed=seed)}  # one half of the clips against the other
     if "GAN2" in sets:
-        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, test)
+        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, test, spec.contact_smooth)
     for name, feats in sets.items():
         motions = to_motions(feats, stats, test, spec.fps)
         rows[name] = quality_row(motions, mocap, fps=spec.fps, seed=seed)
@@ -257,12 +259,19 @@ def joint_speed(positions: np.ndarray, fps: float) -> np.ndarray:
     return np.linalg.norm(np.diff(positions, axis=-3), axis=-1).mean(-1) * fps
 
 
+def lower_toe(positions: np.ndarray, skeleton) -> np.ndarray:
+    """positions (..., T, J, 3) -> the height of the lower toe per frame (..., T), m."""
+    return positions[..., list(skeleton.feet[1::2]), 1].min(-1)
+
+
 def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mocap: list[Motion],
                     seed: int = 0) -> dict:
     """spec.n_random motions of spec.random_seconds from start's first two frames, RNN and refined.
 
-    -> the mocap's root-height range and freeze floor, and per set ("RNN", "GAN2"): NaN count, root-height range,
-    motions whose root height stays within the data's range +- 5 cm (all 20 s / first 10 s), freezing (motions
+    -> the mocap's root-height range, highest lower-toe height and freeze floor, and per set ("RNN", "GAN2",
+    "GAN2 + contacts"): NaN count, root-height range, motions whose root height stays within the data's range
+    +- 5 cm (all 20 s / first 10 s), motions whose feet stay grounded (the lower toe never more than 5 cm above
+    the data's highest lower toe; all 20 s / first 10 s) and the fraction of grounded frames, freezing (motions
     whose last-5-s joint-speed variance is under `freeze_floor`) and APD (m) over the whole motion."""
     from course_lib.evaluation import apd
 
@@ -272,10 +281,12 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
                          bias=spec.sample_bias)
     with torch.no_grad():
         sets = {"RNN": rnn, "GAN2": refiner(rnn)}
-    sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn))
+    sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn), spec.contact_smooth)
     heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
-    floor, last = freeze_floor(mocap), int(5 * spec.fps)
-    out = {"data_root_height": [float(heights.min()), float(heights.max())], "freeze_floor": floor, "frames": T}
+    toe_top = float(max(lower_toe(m.positions(), m.skeleton).max() for m in mocap))
+    floor, last, ten = freeze_floor(mocap), int(5 * spec.fps), int(10 * spec.fps)
+    out = {"data_root_height": [float(heights.min()), float(heights.max())], "data_lower_toe_max": toe_top,
+           "freeze_floor": floor, "frames": T}
     for name, feats in sets.items():
         nan = int((~torch.isfinite(feats)).any(-1).any(-1).sum())
         motions = to_motions(feats, stats, [start] * len(feats), spec.fps)
@@ -284,9 +295,13 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
         var = joint_speed(pos[:, -last:], spec.fps).var(-1)  # (N,)
         lo, hi = out["data_root_height"]
         inside = (h >= lo - 0.05) & (h <= hi + 0.05)  # (N, T): within the data's range +- 5 cm
+        grounded = lower_toe(pos, start.skeleton) <= toe_top + 0.05  # (N, T)
         out[name] = {"nan_motions": nan, "root_height": [float(h.min()), float(h.max())],
                      "in_range_motions": int(inside.all(1).sum()),
-                     "in_range_first_10s": int(inside[:, : int(10 * spec.fps)].all(1).sum()),
+                     "in_range_first_10s": int(inside[:, :ten].all(1).sum()),
+                     "grounded_motions": int(grounded.all(1).sum()),
+                     "grounded_first_10s": int(grounded[:, :ten].all(1).sum()),
+                     "grounded_frames": float(grounded.mean()),
                      "frozen": int((var < floor).sum()), "min_speed_var": float(var.min()),
                      "apd_m": apd(pos)}
     return out

@@ -54,10 +54,13 @@ def _interpolate_gaps(values: np.ndarray, known: np.ndarray) -> np.ndarray:
     return np.interp(t, t[known], values[known])
 
 
-def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR, threshold: float = 0.5):
+def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR, threshold: float = 0.5,
+                     smooth: int = 1):
     """Raw state features (..., T, D) with contact bits -> the same with root height and floor steps corrected
     so that the stance toe stays on the floor and does not slide (see the module docstring).
 
+    smooth: the corrections (height lift, change of the floor step) are averaged over this many frames
+    (centred, odd; 1 = exact constraints), trading a little skate for less jerk from a noisy stance toe.
     Works on numpy arrays or torch tensors (returns the same type); joint angles, heading and contact
     bits are returned unchanged."""
     from course_lib.models.refiner import _check_features, local_positions
@@ -65,6 +68,8 @@ def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR,
     is_torch = torch.is_tensor(features)
     f = features.detach().double() if is_torch else torch.as_tensor(np.asarray(features, dtype=np.float64))
     _check_features(f, skeleton)
+    if int(smooth) != smooth or smooth < 1 or smooth % 2 == 0:
+        raise ValueError(f"enforce_contacts: smooth must be an odd int >= 1, got {smooth!r}")
     if f.shape[-2] < 2:
         raise ValueError(f"enforce_contacts needs T >= 2 frames, got {f.shape[-2]}")
     lead, (T, D) = f.shape[:-2], f.shape[-2:]
@@ -74,9 +79,20 @@ def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR,
     out = flat.numpy().copy()
     bits = out[..., -2:] > threshold  # (N, T, 2)
     for n in range(len(out)):
-        out[n] = _enforce_one(out[n], toes[n], bits[n], toe_floor)
+        fixed = _enforce_one(out[n].copy(), toes[n], bits[n], toe_floor)
+        out[n][:, [0, 1, 3]] += _moving_average(fixed[:, [0, 1, 3]] - out[n][:, [0, 1, 3]], int(smooth))
     out = out.reshape(*lead, T, D)
     return torch.as_tensor(out, dtype=features.dtype) if is_torch else out
+
+
+def _moving_average(x: np.ndarray, k: int) -> np.ndarray:
+    """x (T, C) -> centred k-frame moving average along T (edges averaged over the frames that exist)."""
+    if k == 1:
+        return x
+    kernel = np.ones(k)
+    num = np.stack([np.convolve(c, kernel, mode="same") for c in x.T], 1)
+    den = np.convolve(np.ones(len(x)), kernel, mode="same")[:, None]
+    return num / den
 
 
 def _enforce_one(f: np.ndarray, toes: np.ndarray, bits: np.ndarray, toe_floor: float) -> np.ndarray:

@@ -32,13 +32,16 @@ Differs from the paper:
   ``"none"`` keeps the raw sample).
 - ``GmmRnnConfig.cpu()`` shrinks every width 500 -> 128 so that a model trains in minutes on a 2-core
   CPU; the paper pre-trains on CMU and fine-tunes (sec. 4.1.3), we train once on the course data.
-- ``self_feed=(k, m)`` (used to fine-tune the shipped model after teacher forcing): inputs alternate k
-  true frames and m of the model's own samples, so it learns to return from its own errors.  Teacher
-  forcing alone (the paper) drifted: root height sinking, joint angles growing over 10 s of generation.
-- ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i.  At the paper's
-  output (mu_i = mu_hat_i) a 4000-step CPU model still predicted the root height no better than its
-  marginal (one-step error ~1 sd, while copying x_t errs by 0.12 sd) and its samples skated at
-  ~5 m/s; with residual means "no change" is the starting point and the net learns the change.
+- ``self_feed=(k, m)`` (optional fine-tuning after teacher forcing): inputs alternate k true frames and m
+  of the model's own predictions, so it learns to return from its own errors (acLSTM, Zhou et al. 2018).
+- ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i, except for the
+  columns in ``absolute_dims`` (lesson 03 ships root height, pitch, roll and the contact bits absolute).
+  At the paper's output (every mean absolute) a 4000-step CPU model still predicted the root height no
+  better than its marginal (one-step error ~1 sd, while copying x_t errs by 0.12 sd) and its samples
+  skated at ~5 m/s; with every mean residual the root height became a random walk during generation
+  (32/100 motions of 20 s stayed in the data's height range).  Residual velocities and joint angles with
+  an absolute height and tilt keep both: the change is learned where frames are smooth, and the height
+  cannot wander (100/100 in range, tools/gmm_rnn_sweep.py).
 """
 
 from __future__ import annotations
