@@ -7,6 +7,7 @@ import torch
 from course_lib.datasets import generate_locomotion_set
 from course_lib.evaluation import foot_skate
 from course_lib.models.contact_cleanup import TOE_FLOOR, enforce_contacts, toe_floor_height
+from course_lib.models.refiner import local_positions
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 
@@ -72,3 +73,18 @@ def test_toe_floor_height_matches_the_constant(clip):
     assert toe_floor_height([clip]) == pytest.approx(TOE_FLOOR, abs=0.002)
     with pytest.raises(ValueError, match="no foot contact"):
         toe_floor_height([])
+
+
+def test_a_flagged_foot_in_the_air_is_not_the_stance_foot(clip):
+    """max_above: a contact bit on a toe far above the other toe contradicts the pose and is ignored."""
+    f = encode_state_features(clip)
+    toes = local_positions(torch.from_numpy(f), clip.skeleton)[:, list(clip.skeleton.feet[1::2]), 1].numpy()
+    t = int(np.argmax(np.abs(toes[:, 0] - toes[:, 1])))  # the frame where one toe is highest above the other
+    high = int(np.argmax(toes[t]))
+    assert toes[t, high] - toes[t, 1 - high] > 0.05
+    bad = f.copy()
+    bad[t, 66 + high], bad[t, 66 + 1 - high] = 1.0, 0.0  # only the foot in the air is flagged
+    trusted = enforce_contacts(bad, clip.skeleton, max_above=None)
+    gated = enforce_contacts(bad, clip.skeleton)
+    assert trusted[t, 3] < f[t, 3] - 0.04  # trusting the bit pulls the body down to put that toe on the floor
+    assert abs(gated[t, 3] - f[t, 3]) < 0.01  # the gate keeps the height (interpolated from the neighbours)

@@ -1,5 +1,5 @@
 """Adversarial refiner (Wang, Chai et al. 2021, sec. 4.2-4.3): kinematics in torch vs. representations.py,
-R and D shapes, losses of eq. (9), (10), (13) on hand-made inputs, history buffer, schedule, foot lock."""
+R and D shapes, losses of eq. (9), (10), (13) on hand-made inputs, history buffer, schedule."""
 
 import math
 
@@ -15,7 +15,6 @@ from course_lib.models.refiner import (
     RefinerConfig,
     discriminator_loss,
     end_effector_features,
-    foot_lock,
     local_positions,
     refiner_adversarial_loss,
     refiner_loss,
@@ -171,44 +170,6 @@ def test_adversarial_schedule_doubles_and_halves():
         s.record(float("nan"))
 
 
-def test_foot_lock_zeroes_contact_foot_speed():
-    rng = np.random.default_rng(0)
-    T = 10
-    pos = rng.normal(size=(T, SK.num_joints, 3))
-    contacts = np.zeros((T, 2))
-    contacts[2:6, 0] = 1.0  # left foot planted on frames 2-5
-    contacts[5:9, 1] = 0.9  # right foot on frames 5-8
-    out = foot_lock(pos, contacts, blend=0)
-    lf, lt, rf, rt = SK.feet
-    for joints, frames in (([lf, lt], slice(2, 6)), ([rf, rt], slice(5, 9))):
-        speed = np.linalg.norm(np.diff(out[frames][:, joints][..., [0, 2]], axis=0), axis=-1)
-        assert speed.max() == 0.0  # horizontal foot speed zero during contact
-        assert np.array_equal(out[frames][:, joints, 1], pos[frames][:, joints, 1])  # heights untouched
-    assert np.array_equal(out[:2], pos[:2]) and np.array_equal(out[9], pos[9])  # no contact
-    others = [j for j in range(SK.num_joints) if j not in SK.feet]
-    assert np.array_equal(out[:, others], pos[:, others])
-    batched = foot_lock(np.stack((pos, pos)), np.stack((contacts, 0 * contacts)), blend=0)
-    assert np.array_equal(batched[0], out) and np.array_equal(batched[1], pos)
-
-
-def test_foot_lock_fades_the_correction_out_after_a_contact():
-    T, blend = 12, 3
-    pos = np.zeros((T, SK.num_joints, 3))
-    lf = SK.feet[0]
-    pos[:, lf, 0] = 0.1 * np.arange(T)  # the left ankle slides along x at 0.1 per frame
-    contacts = np.zeros((T, 2))
-    contacts[2:5, 0] = 1.0  # planted on frames 2-4, released on frame 5
-    x = foot_lock(pos, contacts, blend=blend)[:, lf, 0]
-    assert np.allclose(x[2:5], 0.2)  # held where the run started
-    # offset at release -0.2, then -0.2 * 3/4, 2/4, 1/4 on frames 5, 6, 7, and 0 from frame 8
-    assert np.allclose(x[5:9] - pos[5:9, lf, 0], [-0.15, -0.1, -0.05, 0.0])
-    assert np.array_equal(x[8:], pos[8:, lf, 0]) and np.array_equal(x[:2], pos[:2, lf, 0])
-    # no jump back: the 0.2 catch-up is spread over blend + 1 = 4 frames (without blending: one step of 0.3)
-    assert np.abs(np.diff(x)).max() < 0.1 + 0.2 / 4 + 1e-12
-    with pytest.raises(ValueError, match="blend"):
-        foot_lock(pos, contacts, blend=-1)
-
-
 def test_bad_input_errors():
     R = Refiner(tiny())
     with pytest.raises(ValueError, match=r"\(\.\.\., T, 68\)"):
@@ -219,8 +180,6 @@ def test_bad_input_errors():
         R(torch.randn(2, 1, 68))
     with pytest.raises(ValueError, match=r"\(N, T, 15\)"):
         Discriminator(tiny())(torch.randn(2, 5, 15), torch.randn(2, 5, 12))
-    with pytest.raises(ValueError, match="contacts"):
-        foot_lock(np.zeros((5, 21, 3)), np.zeros((4, 2)))
     with pytest.raises(ValueError, match="d_batch"):
         RefinerConfig(d_batch=31)
 

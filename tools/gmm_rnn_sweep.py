@@ -27,33 +27,36 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 ROOT_DIMS = (0, 1, 2, 3, 4, 5)
 CONTACTS = (66, 67)
 TILT = (3, 4, 5) + CONTACTS  # absolute root height, pitch, roll and contacts; residual velocities and angles
-HYBRID = ROOT_DIMS + CONTACTS
-POSE = tuple(range(3, 68))  # only the root's floor velocities (dx, dz, dyaw) residual  # absolute means for the root and the contact bits, residual for the angles
+HYBRID = ROOT_DIMS + CONTACTS  # absolute means for the root and the contact bits, residual for the angles
+POSE = tuple(range(3, 68))  # only the root's floor velocities (dx, dz, dyaw) residual
 
+FT = {"finetune": ((10, 10, 1000),)}  # the self-fed fine-tuning stage of the previous recipe
+# every variant starts from Lesson03Spec() and GmmRnnConfig.cpu() (all means residual unless absolute_dims is given)
 VARIANTS = {
-    "base": {"config": {"absolute_dims": ()}, "spec": {"finetune": ((10, 10, 1000),)}},
-    "steps12k": {"spec": {"rnn_steps": 12000}},
-    "steps24k": {"spec": {"rnn_steps": 24000}},
-    "hybrid": {"config": {"absolute_dims": HYBRID}},
-    "hybrid12k": {"config": {"absolute_dims": HYBRID}, "spec": {"rnn_steps": 12000}},
-    "hybrid24k": {"config": {"absolute_dims": HYBRID}, "spec": {"rnn_steps": 24000}},
-    "height_abs": {"config": {"absolute_dims": (3,) + CONTACTS}},
-    "w256": {"config": {"fc_width": 256, "lstm_width": 256, "out_width": 256}},
+    "base": {"spec": FT},  # the previous shipped recipe
+    "steps12k": {"spec": {**FT, "rnn_steps": 12000}},
+    "steps24k": {"spec": {**FT, "rnn_steps": 24000}},
+    "hybrid": {"config": {"absolute_dims": HYBRID}, "spec": FT},
+    "hybrid12k": {"config": {"absolute_dims": HYBRID}, "spec": {**FT, "rnn_steps": 12000}},
+    "hybrid24k": {"config": {"absolute_dims": HYBRID}, "spec": {**FT, "rnn_steps": 24000}},
+    "height_abs": {"config": {"absolute_dims": (3,) + CONTACTS}, "spec": FT},
+    "w256": {"config": {"fc_width": 256, "lstm_width": 256, "out_width": 256}, "spec": FT},
     "w256_hybrid12k": {"config": {"fc_width": 256, "lstm_width": 256, "out_width": 256, "absolute_dims": HYBRID},
-                       "spec": {"rnn_steps": 12000}},
+                       "spec": {**FT, "rnn_steps": 12000}},
     "w500_hybrid12k": {"config": {"fc_width": 500, "lstm_width": 500, "out_width": 500, "absolute_dims": HYBRID},
-                       "spec": {"rnn_steps": 12000}},
-    "window100": {"config": {"window": 100}},
+                       "spec": {**FT, "rnn_steps": 12000}},
+    "window100": {"config": {"window": 100}, "spec": FT},
     "ft_10_40": {"spec": {"finetune": ((10, 40, 1000),)}},
     "ft_3k": {"spec": {"finetune": ((10, 10, 3000),)}},
     "hybrid_ft_10_40_12k": {"config": {"absolute_dims": HYBRID}, "spec": {"rnn_steps": 12000,
                                                                            "finetune": ((10, 40, 1000),)}},
-    "hybrid_ft": {"config": {"absolute_dims": HYBRID}},
-    "tilt_abs": {"config": {"absolute_dims": TILT}},
+    "hybrid_ft": {"config": {"absolute_dims": HYBRID}, "spec": FT},
+    "tilt_abs": {"config": {"absolute_dims": TILT}, "spec": FT},
     "tilt_abs_noft": {"config": {"absolute_dims": TILT}, "spec": {"finetune": ()}},
-    "tilt_abs_w256": {"config": {"absolute_dims": TILT, "fc_width": 256, "lstm_width": 256, "out_width": 256}},
-    "tilt_abs_window100": {"config": {"absolute_dims": TILT, "window": 100}},
-    "contacts_abs": {"config": {"absolute_dims": CONTACTS}},
+    "tilt_abs_w256": {"config": {"absolute_dims": TILT, "fc_width": 256, "lstm_width": 256, "out_width": 256},
+                      "spec": FT},
+    "tilt_abs_window100": {"config": {"absolute_dims": TILT, "window": 100}, "spec": FT},
+    "contacts_abs": {"config": {"absolute_dims": CONTACTS}, "spec": FT},
     "noft": {"spec": {"finetune": ()}},
     "pose_abs": {"config": {"absolute_dims": POSE}},
     "pose_abs12k": {"config": {"absolute_dims": POSE}, "spec": {"rnn_steps": 12000}},
@@ -69,8 +72,7 @@ VARIANTS = {
 def evaluate_rnn(model, test, stats, spec, biases=(1.0, 2.0)) -> dict:
     """Generation quality of one RNN on the held-out clips, per sampling bias."""
     from course_lib.evaluation import fid, foot_skate, jitter
-    from course_lib.experiments.gmm_rnn import contact_agreement, long_generation, to_motions
-    from course_lib.models.contact_cleanup import enforce_contacts
+    from course_lib.experiments.gmm_rnn import contact_agreement, long_generation, to_motions, with_contacts
     from course_lib.representations import encode_state_features
 
     T = int(round(spec.eval_seconds * spec.fps))
@@ -80,11 +82,7 @@ def evaluate_rnn(model, test, stats, spec, biases=(1.0, 2.0)) -> dict:
     for b in biases:
         feats = model.generate(x0, T - 2, generator=torch.Generator().manual_seed(0), stats=stats, bias=b)
         row = {}
-        for name, f in (("raw", feats), ("enforced", None)):
-            if f is None:
-                raw = feats.double().numpy() * stats[1] + stats[0]
-                f = torch.from_numpy((np.stack([enforce_contacts(r, m.skeleton) for r, m in zip(raw, test)])
-                                      - stats[0]) / stats[1]).float()
+        for name, f in (("raw", feats), ("enforced", with_contacts(feats, stats, test, spec.contact_smooth))):
             motions = to_motions(f, stats, test, spec.fps)
             pos = np.stack([m.positions() for m in motions])
             row[name] = {"foot_skate": foot_skate(pos, fps=spec.fps), "jitter": jitter(pos, fps=spec.fps),

@@ -9,12 +9,15 @@ stays where it is (adjacent frames) and on the floor (point-plane).  `enforce_co
 state features themselves, so the result is still a motion of the same skeleton (bone lengths kept,
 joint angles untouched):
 
-- stance foot: among the feet whose bit is on, the lower toe (a mislabelled swinging foot is higher);
+- stance foot: among the feet whose bit is on, the lower toe; a flagged toe more than ``max_above`` (5 cm)
+  above the other toe is ignored, since the pose says that foot is in the air;
 - point-plane: the root height moves so that the stance toe is at ``toe_floor``; frames without contact
   (flight) get the correction linearly interpolated from the nearest contact frames;
 - adjacent: when the stance foot is in contact on frames t-1 and t, the root's floor step is replaced by
   the one that keeps that toe's world (x, z) fixed: p_t - p_{t-1} = -(R_y(yaw_t) l_t - R_y(yaw_{t-1}) l_{t-1}),
-  l the toe's floor-frame (x, z); heading and pose are unchanged.
+  l the toe's floor-frame (x, z); heading and pose are unchanged;
+- ``smooth`` > 1 averages both corrections over that many frames (less jerk from a noisy toe, a little
+  skate back).
 
 The paper gives no algorithm for this step (its MAP control solves the same terms as soft Gaussian
 penalties, eq. (18)); enforcing them exactly on the root is our reading, see the lesson's table.
@@ -55,10 +58,13 @@ def _interpolate_gaps(values: np.ndarray, known: np.ndarray) -> np.ndarray:
 
 
 def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR, threshold: float = 0.5,
-                     smooth: int = 1):
+                     smooth: int = 1, max_above: float | None = 0.05):
     """Raw state features (..., T, D) with contact bits -> the same with root height and floor steps corrected
     so that the stance toe stays on the floor and does not slide (see the module docstring).
 
+    max_above: a flagged toe more than this (m) above the other toe is not trusted (the pose contradicts the
+    bit: a foot in the air cannot be the stance foot); None trusts every bit.  Mocap's flagged toes are within
+    4 cm of the other toe in 99 % of frames.
     smooth: the corrections (height lift, change of the floor step) are averaged over this many frames
     (centred, odd; 1 = exact constraints), trading a little skate for less jerk from a noisy stance toe.
     Works on numpy arrays or torch tensors (returns the same type); joint angles, heading and contact
@@ -78,6 +84,8 @@ def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR,
         toes = local_positions(flat, skeleton)[..., list(skeleton.feet[1::2]), :].numpy()  # (N, T, 2, 3)
     out = flat.numpy().copy()
     bits = out[..., -2:] > threshold  # (N, T, 2)
+    if max_above is not None:
+        bits &= toes[..., 1] <= toes[..., 1].min(-1, keepdims=True) + max_above
     for n in range(len(out)):
         fixed = _enforce_one(out[n].copy(), toes[n], bits[n], toe_floor)
         out[n][:, [0, 1, 3]] += _moving_average(fixed[:, [0, 1, 3]] - out[n][:, [0, 1, 3]], int(smooth))

@@ -17,7 +17,7 @@ warm-up updates of each network, then 5 R updates per D update, R's count double
 < 0.01 and halved when > 1), `HistoryBuffer` (B = 320 refined motions; half of each D batch of
 b = 32 comes from it; b / 2 of its entries are replaced after each D update), RMSProp at lr 0.002
 (R) and 0.005 (D), decay 0.9.  Contact awareness (sec. 4.3): the contact bits are part of x, so R
-reads and refines them; `foot_lock` holds a contact foot's horizontal position fixed.
+reads and refines them; contact_cleanup.py enforces the predicted contacts on the output.
 
 Differs from the paper:
 - end effectors are the skeleton's leaf joints (toes, hands, head: 5 for the canonical skeleton).
@@ -35,8 +35,6 @@ Differs from the paper:
   and passes them through unchanged.
 - the buffer replaces b / 2 = 16 entries per D update (the paper's text); it stores refined motions
   detached, so D's half-batch from the buffer carries no gradient to R.
-- `foot_lock` works on joint positions only (ankle and toe hold the horizontal position of the first
-  frame of each contact run); the paper does not describe its clean-up, a full one would use IK.
 - ``RefinerConfig.cpu()`` shrinks the widths: R 500 -> 128 (FC1), 1000 -> 128 (LSTM); D 500 -> 64.
 """
 
@@ -55,7 +53,7 @@ from course_lib.rotations import euler_to_quat, expmap_to_quat
 from course_lib.skeleton import Skeleton, forward_kinematics
 
 __all__ = ["AdversarialSchedule", "Discriminator", "HistoryBuffer", "Refiner", "RefinerConfig",
-           "discriminator_loss", "end_effector_features", "foot_lock", "local_positions",
+           "discriminator_loss", "end_effector_features", "local_positions",
            "refiner_adversarial_loss", "refiner_loss", "root_regularisation", "root_trajectory",
            "train_refiner"]
 
@@ -372,60 +370,6 @@ class AdversarialSchedule:
         elif d_loss > self.high:  # D too weak: train R less
             self.r_updates = max(self.r_updates // 2, 1)
         return self.r_updates
-
-
-# ----------------------------------------------------------------------------- contact clean-up (sec. 4.3)
-
-
-def foot_lock(positions, contacts, skeleton: Skeleton | None = None, threshold: float = 0.5,
-              blend: int = 4) -> np.ndarray:
-    """positions (..., T, J, 3), contacts (..., T, 2) predicted (left, right) -> positions (..., T, J, 3).
-
-    While a foot's contact stays above ``threshold``, its ankle and toe keep the horizontal (x, z)
-    position they were shown at on the first frame of the contact run.  When the run ends, the
-    correction fades out linearly over ``blend`` frames, so the foot does not jump back (a jump would
-    be a jerk spike).  Heights and all other joints are unchanged.
-    """
-    pos = np.array(positions, dtype=np.float64)  # a copy, also of torch tensors
-    c = np.asarray(contacts, dtype=np.float64) > threshold
-    skeleton = skeleton or Skeleton.canonical()
-    J = skeleton.num_joints
-    if pos.ndim < 3 or pos.shape[-2:] != (J, 3) or c.shape != pos.shape[:-2] + (2,):
-        raise ValueError(f"foot_lock: positions must be (..., T, {J}, 3) and contacts (..., T, 2), got "
-                         f"{pos.shape}, {c.shape}")
-    if not np.isfinite(pos).all():
-        raise ValueError("foot_lock: positions contain NaN or inf")
-    if int(blend) != blend or blend < 0:
-        raise ValueError(f"foot_lock: blend must be an int >= 0, got {blend!r}")
-    lead, T = pos.shape[:-3], pos.shape[-3]
-    flat, cf = pos.reshape(-1, T, J, 3), c.reshape(-1, T, 2)
-    lf, lt, rf, rt = skeleton.feet
-    for n in range(len(flat)):
-        for side, joints in enumerate(([lf, lt], [rf, rt])):
-            flat[n][:, joints] = _lock_run(flat[n][:, joints], cf[n, :, side], int(blend))
-    return flat.reshape(*lead, T, J, 3)
-
-
-def _lock_run(feet: np.ndarray, contact: np.ndarray, blend: int) -> np.ndarray:
-    """feet (T, F, 3) of one side, contact (T,) bool -> feet with the locked, blended (x, z) offsets."""
-    xz = feet[..., [0, 2]]  # (T, F, 2)
-    shown = xz.copy()
-    offset = anchor = release = np.zeros(xz.shape[1:])
-    fade = 0
-    for t in range(len(xz)):
-        if contact[t]:
-            if t == 0 or not contact[t - 1]:  # a new run: anchor where the foot is shown now
-                anchor = xz[t] + offset
-            offset, fade, shown[t] = anchor - xz[t], 0, anchor  # shown exactly at the anchor
-            continue
-        if t > 0 and contact[t - 1]:  # the run just ended: fade its offset out
-            release, fade = offset, blend
-        offset = release * (fade / (blend + 1)) if fade > 0 else np.zeros_like(offset)
-        fade = max(fade - 1, 0)
-        shown[t] = xz[t] + offset
-    out = feet.copy()
-    out[..., [0, 2]] = shown
-    return out
 
 
 # ----------------------------------------------------------------------------- adversarial training loop (sec. 4.2.2)
