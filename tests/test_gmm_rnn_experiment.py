@@ -39,11 +39,12 @@ def test_quality_table_rows(setup):
     assert list(rows) == list(X.ROWS)
     for name, r in rows.items():
         extra = {"contact_agreement"} if name != "Mocap" else set()
-        assert set(r) == {"foot_skate", "jitter", "fid", "is", "two_sample"} | extra, name
+        assert set(r) == {"foot_skate", "jitter", "penetration", "fid", "is", "two_sample"} | extra, name
         assert 0.0 <= r.get("contact_agreement", 0.5) <= 1.0
         assert all(np.isfinite(v) for v in r.values()), name
         assert 0.0 <= r["two_sample"] <= 1.0 and 1.0 <= r["is"] <= 4.0 + 1e-9
     assert rows["Mocap"]["foot_skate"] < 0.05  # the generator's planted feet barely move
+    assert rows["Mocap"]["penetration"] < 0.005  # and stay on the floor
     # an untrained RNN skates; enforcing its predicted contacts removes some of GAN2's skate
     assert rows["GAN2 + contacts"]["foot_skate"] < rows["GAN2"]["foot_skate"]
 

@@ -212,11 +212,13 @@ def foot_skate_of(positions: np.ndarray, fps: float) -> float:
 
 
 def quality_row(motions, mocap: list[Motion], fps: float = 30.0, seed: int = 0) -> dict:
-    """Foot skate (m/s), jitter (m/s^3), FID, IS and two-sample accuracy of a set against mocap."""
-    from course_lib.evaluation import fid, foot_skate, inception_score, jitter, two_sample_accuracy
+    """Foot skate (m/s), jitter (m/s^3), ground penetration (m), FID, IS and two-sample accuracy of a set
+    against mocap."""
+    from course_lib.evaluation import fid, foot_skate, ground_penetration, inception_score, jitter, two_sample_accuracy
 
     pos = np.stack([m.positions() for m in motions])
     return {"foot_skate": foot_skate(pos, fps=fps), "jitter": jitter(pos, fps=fps),
+            "penetration": ground_penetration(pos, skeleton=motions[0].skeleton),
             "fid": fid(mocap, motions), "is": inception_score(motions),
             "two_sample": two_sample_accuracy(mocap, motions, seed=seed)}
 
