@@ -1,5 +1,5 @@
 """Lesson-03 experiment plumbing (course_lib/experiments/gmm_rnn.py) on a few small clips: windows,
-continuations, the Fig. 12 stand-in rows, the long-generation checks and the foot-lock row."""
+continuations, the Fig. 12 stand-in rows (GAN2 + contacts), the long-generation checks and the recipe sweep."""
 
 import numpy as np
 import pytest
@@ -83,3 +83,25 @@ def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
     assert hist.num_steps == 3 and ft.num_steps == 4 and not model.training
     assert model.config.self_feed == (1, 4) and model.config.residual
     assert all(np.isfinite(hist.step["loss"] + ft.step["loss"]))
+
+
+def test_recipe_sweep_runs_one_variant_end_to_end(setup):
+    """tools/gmm_rnn_sweep.py (the search behind the shipped recipe): one variant, a few steps, every number."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "gmm_rnn_sweep.py"
+    spec = importlib.util.spec_from_file_location("gmm_rnn_sweep", path)
+    sweep = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sweep)
+    clips, ds, *_ = setup
+    threads = torch.get_num_threads()
+    try:
+        name, res, state = sweep.run_variant(("pose_abs", "cpu", (clips[:6], clips[6:], ds), True))
+    finally:
+        torch.set_num_threads(threads)  # run_variant pins its worker process to one thread
+    assert name == "pose_abs" and "out.weight" in state
+    assert set(res) >= {"train_seconds", "final_nll", "bias1", "bias2"}
+    for b in ("bias1", "bias2"):
+        assert set(res[b]["raw"]) == {"foot_skate", "jitter", "fid", "contact_agreement"}
+        assert res[b]["long"]["nan_motions"] == 0 and 0 <= res[b]["long"]["grounded_motions"] <= 4
