@@ -66,7 +66,7 @@ def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR,
     bit: a foot in the air cannot be the stance foot); None trusts every bit.  Mocap's flagged toes are within
     4 cm of the other toe in 99 % of frames.
     smooth: the corrections (height lift, change of the floor step) are averaged over this many frames
-    (centred, odd; 1 = exact constraints), trading a little skate for less jerk from a noisy stance toe.
+    (centred, odd; 1 = exact constraints), trading some skate for less jerk from a noisy stance toe.
     Works on numpy arrays or torch tensors (returns the same type); joint angles, heading and contact
     bits are returned unchanged."""
     from course_lib.models.refiner import _check_features, local_positions
