@@ -72,15 +72,19 @@ VARIANTS = {
 def evaluate_rnn(model, test, stats, spec, biases=(1.0, 2.0)) -> dict:
     """Generation quality of one RNN on the held-out clips, per sampling bias."""
     from course_lib.evaluation import fid, foot_skate, jitter
-    from course_lib.experiments.gmm_rnn import contact_agreement, long_generation, to_motions, with_contacts
-    from course_lib.representations import encode_state_features
+    from course_lib.experiments.gmm_rnn import (
+        contact_agreement,
+        continuations,
+        long_generation,
+        to_motions,
+        with_contacts,
+    )
 
     T = int(round(spec.eval_seconds * spec.fps))
     mocap = [m[:T] for m in test]
-    x0 = torch.from_numpy(np.stack([(encode_state_features(m)[:2] - stats[0]) / stats[1] for m in test])).float()
     out = {}
     for b in biases:
-        feats = model.generate(x0, T - 2, generator=torch.Generator().manual_seed(0), stats=stats, bias=b)
+        feats = continuations(model, {}, test, stats, replace(spec, sample_bias=b), seed=0)["RNN"]
         row = {}
         for name, f in (("raw", feats), ("enforced", with_contacts(feats, stats, test, spec.contact_smooth))):
             motions = to_motions(f, stats, test, spec.fps)
