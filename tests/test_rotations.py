@@ -171,7 +171,9 @@ def test_quat_rotate_is_scipy_apply(q, v):
 @given(quats(max_n=1), quats(max_n=1), st.floats(0.0, 1.0))
 def test_slerp_matches_scipy(q0, q1, t):
     if abs(np.sum(q0 * q1)) < 1e-3:
-        q1 = rot.quat_mul(t64(q1), rot.axis_angle_to_quat(t64([1.0, 0, 0]), t64(0.1))).numpy()  # unique short arc
+        # a half-turn apart has two shortest arcs: tilt q1 towards q0 (a fixed-axis turn can leave the dot at 0)
+        q1 = q1 + 0.1 * q0
+        q1 = q1 / np.linalg.norm(q1, axis=-1, keepdims=True)
     ours = rot.quat_slerp(t64(q0), t64(q1), t).numpy()
     ref = Slerp([0.0, 1.0], Rotation.concatenate([scipy_q(q0), scipy_q(q1)]))([t]).as_quat(scalar_first=True)
     same_rotation(ours, ref)
