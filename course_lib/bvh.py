@@ -8,15 +8,23 @@ Conventions used here (and by Blender, MotionBuilder and the CMU conversions):
 - rotation channels are intrinsic Euler angles in degrees, applied in channel
   order: ``Zrotation Yrotation Xrotation`` means R = Rz @ Ry @ Rx; this is
   `course_lib.rotations.euler_to_quat(angles, "ZYX")`;
-- the root's world position is its OFFSET plus its position channels;
+- a joint with position channels is placed by them alone, relative to its
+  parent (the root: its world position); its OFFSET is not added.  A joint
+  without position channels sits at its OFFSET.  This is what Blender's
+  importer and bvhio do (and PyMO for the root; PyMO adds a non-root joint's
+  channels to its OFFSET); an axis without a channel is 0, as in Blender.
+  The root's OFFSET is kept as ``skeleton.offsets[0]`` (the rest position
+  Blender shows) and written back; `Motion.root_positions` are the channels;
 - ``scale`` multiplies offsets and positions (CMU files are in inches / 0.45:
   ``scale=0.056444`` gives metres).
 
 Choices (documented, tested):
-- Position channels on a non-root joint are folded into its OFFSET when their
-  values are the same on every frame (exporters that write 6 channels on every
-  joint do this); a `Motion` has fixed bone offsets, so values that change over
+- Position channels on a non-root joint replace its OFFSET when their values are
+  the same on every frame (exporters that write 6 channels on every joint write
+  the OFFSET there); a `Motion` has fixed bone offsets, so values that change over
   time raise `BVHError` ("translation channels on non-root joints are not supported").
+- Joint names are one word without braces (`valid_joint_name`), for reader and writer alike.
+- A UTF-8 byte-order mark is skipped; ``Frames: 0`` gives an empty Motion.
 - A joint has 0 or 3 rotation channels (X, Y, Z once each, any of the 6 orders);
   position channels may come before, after or between them.
 - End Sites become `Skeleton.end_sites` (one per joint; a second one is ignored).
@@ -48,16 +56,22 @@ CMU_SAMPLE = Path("shared") / "data" / "cmu_07_01_walk.bvh"  # the course's real
 
 def cmu_sample_path(start: str | os.PathLike | None = None) -> Path:
     """Path of the course's real CMU walk (``../shared/data/cmu_07_01_walk.bvh``), looked for in
-    `start` (default: the current folder), the folder holding course_lib, and every folder above them."""
+    `start` (default: the current folder), the folder holding course_lib, and every folder above them.
+    The path is resolved (symbolic links such as a linked ``shared/`` followed)."""
     for origin in (Path(start or Path.cwd()).resolve(), Path(__file__).resolve().parent):
         for folder in (origin, *origin.parents):
             if (folder / CMU_SAMPLE).is_file():
-                return folder / CMU_SAMPLE
+                return (folder / CMU_SAMPLE).resolve()
     raise FileNotFoundError(f"{CMU_SAMPLE} not found above {Path(start or Path.cwd())} or {Path(__file__).parent}")
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = ("Xrotation", "Yrotation", "Zrotation")
 _NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
 _NUMBER_CHARS = re.compile(r"[0-9eE+\-.]*")
+
+
+def valid_joint_name(name: str) -> bool:
+    """A BVH joint name is one non-empty word without braces (both the reader and the writer enforce it)."""
+    return isinstance(name, str) and bool(name) and not any(ch.isspace() or ch in "{}" for ch in name)
 
 
 class BVHError(ValueError):
@@ -157,6 +171,8 @@ class _HierarchyParser:
     def declare(self, toks: list[str], line: int, parent: int) -> int:
         if len(toks) != 2:
             raise BVHError(line, f"{toks[0]} needs exactly one name (no spaces), got {len(toks) - 1} words")
+        if not valid_joint_name(toks[1]):
+            raise BVHError(line, f"joint name {toks[1]!r} contains a brace; a name is one word without braces")
         if any(j.name == toks[1] for j in self.joints):
             raise BVHError(line, f"joint name {toks[1]!r} is used twice")
         self.joints.append(_Joint(toks[1], parent, line))
@@ -277,7 +293,7 @@ def parse_bvh(text: str, scale: float = 1.0, source_path: str | None = None) -> 
     """BVH text -> Motion on the file's own skeleton (joints in depth-first order); see `read_bvh`."""
     if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"parse_bvh: scale must be a positive number, got {scale}")
-    lines = _split_lines(text)
+    lines = _split_lines(text.removeprefix("\ufeff"))  # a UTF-8 byte-order mark is not content
     parser = _HierarchyParser(lines)
     joints = parser.parse()
     frames, frame_time, start = _motion_header(lines, parser.pos)
@@ -287,9 +303,14 @@ def parse_bvh(text: str, scale: float = 1.0, source_path: str | None = None) -> 
 
 
 def _split_channels(joints: list[_Joint], values: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(T, C) -> root position channels (T, 3), per-joint angles (T, J, 3) degrees, rotation orders."""
+    """(T, C) -> root positions (T, 3) (file units), per-joint angles (T, J, 3) degrees, rotation orders.
+
+    A joint with position channels is placed by them, not OFFSET + them (Blender, bvhio); the root
+    without any sits at its OFFSET.  Constant non-root channels replace that joint's OFFSET.
+    """
     T, J = values.shape[0], len(joints)
-    root_pos, angles, orders, col = np.zeros((T, 3)), np.zeros((T, J, 3)), [], 0
+    root_pos = np.broadcast_to(joints[0].offset, (T, 3)).copy()
+    angles, orders, col = np.zeros((T, J, 3)), [], 0
     for j, joint in enumerate(joints):
         rot = [c for c in joint.channels if c in _ROTATION]
         orders.append("".join(c[0] for c in rot))
@@ -300,10 +321,12 @@ def _split_channels(joints: list[_Joint], values: np.ndarray) -> tuple[np.ndarra
             else:
                 angles[:, j, rot.index(c)] = values[:, col]
             col += 1
+        if len(rot) == len(joint.channels):
+            continue
         if j == 0:
             root_pos = pos
-        elif len(rot) != len(joint.channels):
-            joint.offset = joint.offset + _constant_translation(joint, pos)
+        else:
+            joint.offset = _constant_translation(joint, pos)
     return root_pos, angles, orders
 
 
@@ -312,7 +335,7 @@ def _constant_translation(joint: _Joint, pos: np.ndarray) -> np.ndarray:
         raise BVHError(joint.channels_line, f"joint {joint.name!r} has translation channels whose values change "
                                             "over time; translation channels on non-root joints are not supported "
                                             "(a Motion has fixed bone offsets)")
-    return pos[0] if len(pos) else np.zeros(3)
+    return pos[0] if len(pos) else joint.offset
 
 
 def _to_motion(joints: list[_Joint], values: np.ndarray, frame_time: float, scale: float,
@@ -326,7 +349,7 @@ def _to_motion(joints: list[_Joint], values: np.ndarray, frame_time: float, scal
         # BVH: R = R_{c0}(a0) R_{c1}(a1) R_{c2}(a2) for channel order c0 c1 c2 (intrinsic, degrees)
         quats[:, js] = euler_to_quat(torch.from_numpy(np.radians(angles[:, js])), order).numpy()
     offsets = np.stack([j.offset for j in joints]) * scale
-    root = (root_pos + joints[0].offset) * scale
+    root = root_pos * scale
     if not (np.isfinite(offsets).all() and np.isfinite(root).all() and np.isfinite(quats).all()):
         raise BVHError(joints[0].line, f"offsets or positions overflow to infinity at scale {scale}")
     ends = {j: jt.end_site * scale for j, jt in enumerate(joints) if jt.end_site is not None}
@@ -369,28 +392,33 @@ def _default_end_site(skeleton: Skeleton, j: int) -> np.ndarray:
 
 
 def _hierarchy_lines(skeleton: Skeleton, orders: list[str], scale: float, fmt: str) -> list[str]:
+    """The HIERARCHY block, depth-first; iterative, so a hierarchy thousands of joints deep is fine."""
     out = ["HIERARCHY"]
 
     def vec(v) -> str:
         return " ".join(fmt % x for x in np.asarray(v) * scale)
 
-    def emit(j: int, depth: int) -> None:
+    children = [[] for _ in range(skeleton.num_joints)]
+    for c, p in enumerate(skeleton.parents[1:], 1):
+        children[p].append(c)
+    stack: list[tuple[int, int, bool]] = [(0, 0, False)]  # (joint, depth, its children already written)
+    while stack:
+        j, depth, closing = stack.pop()
         pad = "\t" * depth
+        if closing:
+            if j in skeleton.end_sites or not children[j]:
+                end = skeleton.end_sites.get(j, None)
+                end = _default_end_site(skeleton, j) if end is None else end
+                out.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {vec(end)}", f"{pad}\t}}"])
+            out.append(f"{pad}}}")
+            continue
         rot = " ".join(f"{axis}rotation" for axis in orders[j])
         head = "ROOT" if j == 0 else "JOINT"
         channels = f"CHANNELS 6 Xposition Yposition Zposition {rot}" if j == 0 else f"CHANNELS 3 {rot}"
         out.extend([f"{pad}{head} {skeleton.names[j]}", f"{pad}{{", f"{pad}\tOFFSET {vec(skeleton.offsets[j])}",
                     f"{pad}\t{channels}"])
-        children = skeleton.children(j)
-        for c in children:
-            emit(c, depth + 1)
-        if j in skeleton.end_sites or not children:
-            end = skeleton.end_sites.get(j, None)
-            end = _default_end_site(skeleton, j) if end is None else end
-            out.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {vec(end)}", f"{pad}\t}}"])
-        out.append(f"{pad}}}")
-
-    emit(0, 0)
+        stack.append((j, depth, True))
+        stack.extend((c, depth + 1, False) for c in reversed(children[j]))
     return out
 
 
@@ -411,26 +439,44 @@ def _frame_lines(motion: Motion, orders: list[str], scale: float, fmt: str) -> l
     for order in set(orders):
         js = [j for j, o in enumerate(orders) if o == order]
         angles[:, js] = np.degrees(quat_to_euler(rot[:, js], order).numpy())
-    root = (motion.root_positions - motion.skeleton.offsets[0]) * scale  # BVH: world = OFFSET + channels
+    root = motion.root_positions * scale  # the root is placed by its channels alone (not OFFSET + channels)
     values = np.concatenate([root, angles[:, _depth_first(motion.skeleton)].reshape(T, 3 * J)], axis=1)  # (T, 3+3J)
     row = " ".join([fmt] * values.shape[1])
     return [row % tuple(v) for v in values]
 
 
-def _check_writable(motion: Motion, orders, path: Path, overwrite: bool) -> list[str]:
-    J = motion.skeleton.num_joints
-    orders = [orders] * J if isinstance(orders, str) else list(orders)
+def _check_orders(order, J: int) -> list[str]:
+    orders = [order] * J if isinstance(order, str) else list(order)
     if len(orders) != J:
         raise ValueError(f"write_bvh: {len(orders)} rotation orders for {J} joints")
     for o in orders:
         if not (isinstance(o, str) and len(o) == 3 and sorted(o) == ["X", "Y", "Z"]):
             raise ValueError(f"write_bvh: rotation order must be a permutation of 'XYZ' such as 'ZYX', got {o!r}")
-    for name in motion.skeleton.names:
-        if not name or any(ch.isspace() or ch in "{}" for ch in name):
-            raise ValueError(f"write_bvh: joint name {name!r} cannot be written to BVH (empty, space or brace)")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"write_bvh: {path} exists; pass overwrite=True to replace it")
     return orders
+
+
+def _check_writable(motion: Motion, scale: float) -> None:
+    """Refuse what `read_bvh` would reject (the arrays may have been edited in place since the Motion was made)."""
+    sk = motion.skeleton
+    for name in sk.names:
+        if not valid_joint_name(name):
+            raise ValueError(f"write_bvh: joint name {name!r} cannot be written to BVH (empty, space or brace)")
+    if not (isinstance(scale, (int, float, np.floating)) and np.isfinite(scale) and scale > 0):
+        raise ValueError(f"write_bvh: scale must be a positive finite number, got {scale}")
+    if not (isinstance(motion.fps, (int, float, np.floating)) and 1e-9 <= 1.0 / motion.fps < 1e9):
+        raise ValueError(f"write_bvh: fps must be a positive finite number (1e-9 < fps <= 1e9), got {motion.fps}")
+    ends = np.array([v for v in sk.end_sites.values()]).reshape(-1, 3)
+    for what, x, s in (("rotations", motion.rotations, 1.0), ("root_positions", motion.root_positions, scale),
+                       ("skeleton offsets", sk.offsets, scale), ("End Site offsets", ends, scale)):
+        with np.errstate(over="ignore", invalid="ignore"):
+            finite = np.isfinite(x * s).all()
+        if not finite:
+            times = f" (times scale {scale})" if s != 1.0 else ""
+            raise ValueError(f"write_bvh: {what}{times} contain NaN or inf; read_bvh would reject the file")
+    norms = np.linalg.norm(motion.rotations, axis=-1)
+    if norms.size and np.abs(norms - 1).max() > 1e-3:
+        raise ValueError(f"write_bvh: rotations must be unit quaternions (norms range {norms.min():.4g}.."
+                         f"{norms.max():.4g})")
 
 
 def write_bvh(motion: Motion, path: str | os.PathLike, order: str | list[str] = "ZYX", overwrite: bool = False,
@@ -444,10 +490,19 @@ def write_bvh(motion: Motion, path: str | os.PathLike, order: str | list[str] = 
     or a short default one on leaf joints without.  Lengths are multiplied by
     `scale` (e.g. ``1 / CMU_SCALE`` for CMU units).  Refuses to replace an
     existing file unless `overwrite`; writes a temporary file then renames it,
-    so a reader never sees half a file.
+    so a reader never sees half a file.  The root's OFFSET is ``skeleton.offsets[0]`` and its
+    position channels are `motion.root_positions` (see the module docstring: Blender places the
+    root by its channels alone).  Refuses (ValueError) what `read_bvh` would reject: NaN or inf
+    values, non-unit rotations, a scale that is not a positive number, joint names with spaces
+    or braces.
     """
     path = Path(path)
-    orders = _check_writable(motion, order, path, overwrite)
+    orders = _check_orders(order, motion.skeleton.num_joints)
+    _check_writable(motion, scale)
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"write_bvh: folder {path.parent} does not exist (create it first)")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"write_bvh: {path} exists; pass overwrite=True to replace it")
     fmt = f"%.{int(decimals)}f"
     lines = _hierarchy_lines(motion.skeleton, orders, scale, fmt)
     lines += ["MOTION", f"Frames: {len(motion)}", f"Frame Time: {1.0 / motion.fps:.10g}"]

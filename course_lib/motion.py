@@ -67,8 +67,8 @@ class Motion:
 
     @property
     def duration(self) -> float:
-        """Seconds spanned by the frames."""
-        return (len(self) - 1) / self.fps
+        """Seconds spanned by the frames (0 for one frame or none)."""
+        return max(len(self) - 1, 0) / self.fps
 
     def __getitem__(self, frames) -> "Motion":
         if isinstance(frames, int):
@@ -97,6 +97,8 @@ class Motion:
         if not fps > 0:
             raise ValueError(f"resample: fps must be positive, got {fps}")
         T = len(self)
+        if T == 0:
+            return replace(self, fps=float(fps), meta=dict(self.meta))
         n = int(np.floor(self.duration * fps + 1e-9)) + 1
         t = np.arange(n) * (self.fps / fps)  # new frame times in old frame units
         i0 = np.clip(np.floor(t).astype(int), 0, T - 1)

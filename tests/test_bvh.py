@@ -41,6 +41,14 @@ def test_cmu_sample_path_finds_the_shared_clip(cmu_bvh_path, tmp_path):
     assert cmu_sample_path(tmp_path) == cmu_bvh_path.resolve()  # falls back to the package's own location
 
 
+def test_cmu_sample_path_through_a_symlinked_shared_folder(cmu_bvh_path, tmp_path):
+    """A checkout beside a *linked* shared/ (as on some machines) finds the clip, as a resolved path."""
+    (tmp_path / "shared").symlink_to(cmu_bvh_path.parent.parent, target_is_directory=True)
+    (tmp_path / "repo").mkdir()
+    found = cmu_sample_path(tmp_path / "repo")
+    assert found == cmu_bvh_path.resolve() and found.is_file()
+
+
 def _pos(m: Motion, name: str) -> np.ndarray:
     return m.positions()[:, m.skeleton.index(name)]
 
@@ -138,15 +146,18 @@ def test_cmu_write_read_round_trip_and_other_channel_orders(cmu, tmp_path):
 # ---------------------------------------------------------------------------
 
 def _reference_crafted(values: np.ndarray) -> np.ndarray:
-    """(21,) channel values of crafted_mixed_orders.bvh -> (5, 3) positions, by scipy and numpy."""
+    """(21,) channel values of crafted_mixed_orders.bvh -> (5, 3) positions, by scipy and numpy.
+
+    Position channels place a joint by themselves (Blender, bvhio): the root's OFFSET (1, 2, 3) and
+    Top's OFFSET (0.5, 3, 0) are not added."""
     def rot(order, angles):
         return Rotation.from_euler(order, angles, degrees=True)  # uppercase = intrinsic, as BVH
 
     g_pelvis = rot("YXZ", values[0:3])
-    x_pelvis = np.array([1.0, 2.0, 3.0]) + values[[3, 5, 4]]  # channels Xposition Zposition Yposition
+    x_pelvis = values[[3, 5, 4]]  # channels Xposition Zposition Yposition
     g_upper = g_pelvis * rot("XYZ", values[6:9])
     x_upper = x_pelvis + g_pelvis.apply([0.0, 4.0, 0.5])
-    x_top = x_upper + g_upper.apply(np.array([0.5, 3.0, 0.0]) + values[9:12])  # constant translation folded
+    x_top = x_upper + g_upper.apply(values[9:12])  # constant translation replaces the OFFSET
     x_arm = x_upper + g_upper.apply([3.0, 0.0, 0.0])
     x_leg = x_pelvis + g_pelvis.apply([1.0, -5.0, 0.0])
     return np.stack([x_pelvis, x_upper, x_top, x_arm, x_leg])
@@ -244,7 +255,7 @@ def test_base_and_edge_files_read(tmp_path):
     assert m.skeleton.names == ("Hips", "Chest") and len(m) == 2 and m.meta["channel_orders"] == ("ZXY", "XYZ")
     const = parse_bvh(_edit(BASE, {9: "CHANNELS 6 Xrotation Xposition Yposition Zposition Yrotation Zrotation",
                                    19: "1 2 3 10 20 30 40 1 2 3 50 60", 20: "4 5 6 -10 -20 -30 -40 1 2 3 -50 -60"}))
-    np.testing.assert_allclose(const.skeleton.offsets[1], [1.0, 12.0, 3.0])  # OFFSET + constant translation
+    np.testing.assert_allclose(const.skeleton.offsets[1], [1.0, 2.0, 3.0])  # constant translation, not OFFSET
     np.testing.assert_allclose(const.rotations, m.rotations, atol=1e-12)
     fixed_root = parse_bvh(_edit(BASE, {4: "OFFSET 1 2 3", 5: "CHANNELS 3 Zrotation Xrotation Yrotation",
                                         19: "10 20 30 40 50 60", 20: "-10 -20 -30 -40 -50 -60"}))
@@ -407,3 +418,67 @@ def test_fuzzed_cmu_text_raises_only_bvh_error(cmu_head_text, ops):
     pos = m.positions()
     assert np.isfinite(pos).all() and pos.shape == (len(m), m.skeleton.num_joints, 3)
     assert np.allclose(np.linalg.norm(m.rotations, axis=-1), 1.0)
+
+
+# ---------------------------------------------------------------------------
+# Inputs the reader and the writer must agree on
+# ---------------------------------------------------------------------------
+
+def test_write_refuses_what_read_would_reject(tmp_path):
+    m = parse_bvh(BASE)
+    m.rotations[1, 1] = np.nan  # an in-place edit after the Motion was checked
+    with pytest.raises(ValueError, match="rotations contain NaN or inf; read_bvh would reject"):
+        write_bvh(m, tmp_path / "nan.bvh")
+    m = parse_bvh(BASE)
+    m.rotations[0, 0] *= 2.0
+    with pytest.raises(ValueError, match="unit quaternions"):
+        write_bvh(m, tmp_path / "long.bvh")
+    for scale in (float("nan"), 0.0, -1.0, float("inf")):
+        with pytest.raises(ValueError, match="scale must be a positive finite number"):
+            write_bvh(parse_bvh(BASE), tmp_path / "s.bvh", scale=scale)
+    m = parse_bvh(BASE)
+    m.skeleton.end_sites[1][1] = np.inf
+    with pytest.raises(ValueError, match="End Site offsets contain NaN or inf"):
+        write_bvh(m, tmp_path / "end.bvh")
+    m = parse_bvh(BASE)
+    m.root_positions[0, 0] = 1e308
+    with pytest.raises(ValueError, match="root_positions \\(times scale 10\\) contain NaN or inf"):
+        write_bvh(m, tmp_path / "big.bvh", scale=10)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_names_a_missing_folder(tmp_path):
+    with pytest.raises(FileNotFoundError, match=f"folder {tmp_path / 'no' / 'such'} does not exist"):
+        write_bvh(parse_bvh(BASE), tmp_path / "no" / "such" / "m.bvh")
+
+
+def test_deep_hierarchy_reads_and_writes(tmp_path):
+    J = 1000
+    skeleton = Skeleton(tuple(f"j{j}" for j in range(J)), (-1, *range(J - 1)), np.tile([0.0, 0.01, 0.0], (J, 1)))
+    m = Motion(np.tile([1.0, 0, 0, 0], (2, J, 1)), np.zeros((2, 3)), skeleton, 30.0)
+    again = read_bvh(write_bvh(m, tmp_path / "deep.bvh"))
+    assert again.skeleton.parents == skeleton.parents
+    np.testing.assert_allclose(again.positions(), m.positions(), atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["{", "}", "a{b", "Hip}"])
+def test_reader_and_writer_agree_on_joint_names(name, tmp_path):
+    with pytest.raises(BVHError, match=f"^line 6: joint name {name!r} contains a brace"):
+        parse_bvh(_edit(BASE, {6: f"JOINT {name}"}))
+    m = Motion(np.tile([1.0, 0, 0, 0], (1, 2, 1)), np.zeros((1, 3)),
+               Skeleton(("root", name), (-1, 0), np.zeros((2, 3))), 30.0)
+    with pytest.raises(ValueError, match="cannot be written to BVH"):
+        write_bvh(m, tmp_path / "n.bvh")
+    ok = Motion(m.rotations, m.root_positions, Skeleton(("root", "é.x:1"), (-1, 0), np.zeros((2, 3))), 30.0)
+    assert read_bvh(write_bvh(ok, tmp_path / "ok.bvh")).skeleton.names == ("root", "é.x:1")
+
+
+def test_byte_order_mark_and_zero_frames(tmp_path):
+    (tmp_path / "bom.bvh").write_bytes(b"\xef\xbb\xbf" + BASE.encode())
+    np.testing.assert_allclose(read_bvh(tmp_path / "bom.bvh").positions(), parse_bvh(BASE).positions())
+    empty = parse_bvh(_edit(BASE, {17: "Frames: 0", 19: "", 20: ""}))
+    assert len(empty) == 0 and empty.duration == 0.0 and empty.positions().shape == (0, 2, 3)
+    assert len(empty.resample(60.0)) == 0
+    again = read_bvh(write_bvh(empty, tmp_path / "empty.bvh"))
+    assert len(again) == 0 and again.skeleton.names == ("Hips", "Chest")
+    assert parse_bvh(BASE)[:1].duration == 0.0 and parse_bvh(BASE).duration == pytest.approx(1 / 30)
