@@ -5,6 +5,9 @@
   + a schema version).  Written deterministically (fixed zip timestamps, no
   compression) and atomically (temp file + ``os.replace``).
 - `split_by_subject`: train / val / test with no subject in two splits.
+- `FixedDofs`: the degrees of freedom a training set never varies (hinge joints' off-axis
+  quaternion components, rigid shoulders and hands), detected from the data and set to their
+  constants in every generator's output.
 - `WindowDataset`: fixed-length windows of one representation of
   representations.py, normalised with mean/std from the training split only.
 - `generate_locomotion_set`, `generate_actions_set`, `noisy_copies`,
@@ -41,6 +44,7 @@ from course_lib.skeleton import Skeleton
 
 SCHEMA_VERSION = 1
 STD_FLOOR = 1e-4  # features with a smaller std over the training set (constant ones) are divided by this
+FIXED_TOL = 1e-6  # a feature whose range over the training frames is at most this is a fixed degree of freedom
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed timestamp: the same arrays give the same bytes
 ACTIONS = ("walk", "jog", "jump", "lift")
@@ -249,6 +253,55 @@ def compute_stats(features: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """List of (T_i, D) -> mean (D,), std (D,) over all frames, std floored at STD_FLOOR."""
     allf = np.concatenate(features)
     return allf.mean(0), np.maximum(allf.std(0), STD_FLOOR)
+
+
+@dataclasses.dataclass(frozen=True)
+class FixedDofs:
+    """Features that never vary in a training set: mask (D,) bool, True where fixed; values (D,) their constants.
+
+    In ``quaternion_root`` 28 of the 84 quaternion channels are fixed (the knees', elbows' and toes'
+    off-axis components; the shoulders and hands do not move).  A model should not be judged, nor
+    fed, on channels the data never exercise: `apply` sets them to the data's constants, and the
+    classifiers of `course_lib.evaluation` drop them from their inputs.
+    """
+
+    mask: np.ndarray
+    values: np.ndarray
+
+    @classmethod
+    def detect(cls, frames, tol: float = FIXED_TOL) -> FixedDofs:
+        """frames (..., D) (numpy or torch) -> the features whose range (max - min) is at most tol."""
+        f = frames.detach().cpu().double().numpy() if isinstance(frames, torch.Tensor) else np.asarray(frames, float)
+        if f.ndim < 2 or f.shape[-1] < 1 or f.size == 0:
+            raise ValueError(f"FixedDofs.detect: expected (..., D) frames, got shape {f.shape}")
+        f = f.reshape(-1, f.shape[-1])
+        if not np.isfinite(f).all():
+            raise ValueError("FixedDofs.detect: frames contain NaN or inf")
+        return cls(mask=(f.max(0) - f.min(0)) <= tol, values=f.mean(0))
+
+    @classmethod
+    def from_stats(cls, mean, std) -> FixedDofs:
+        """From normalisation statistics (`compute_stats`): the features whose std sits at STD_FLOOR."""
+        mean, std = np.asarray(mean, np.float64), np.asarray(std, np.float64)
+        return cls(mask=std <= STD_FLOOR, values=mean)
+
+    def __len__(self) -> int:
+        return int(self.mask.sum())
+
+    def names(self, names: list[str]) -> list[str]:
+        """The names of the fixed features, given all D feature names."""
+        if len(names) != len(self.mask):
+            raise ValueError(f"FixedDofs.names: {len(names)} names for {len(self.mask)} features")
+        return [n for n, fixed in zip(names, self.mask, strict=True) if fixed]
+
+    def apply(self, x):
+        """(..., D) numpy array or tensor -> a copy with every fixed feature set to its constant."""
+        if x.shape[-1] != len(self.mask):
+            raise ValueError(f"FixedDofs.apply: expected (..., {len(self.mask)}) features, got {tuple(x.shape)}")
+        if isinstance(x, torch.Tensor):
+            mask = torch.as_tensor(self.mask, device=x.device)
+            return torch.where(mask, torch.as_tensor(self.values, dtype=x.dtype, device=x.device), x)
+        return np.where(self.mask, self.values, x)
 
 
 def stats_path(data_path, representation: str, fps: float) -> Path:

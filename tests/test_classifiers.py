@@ -1,11 +1,11 @@
-"""Shipped action/style classifiers and the metrics built on them: FID, IS, two-sample test, foot skate.
+"""Shipped action/style classifiers and the metrics built on them: FID, IS, foot skate.
 
 Known answers on real synthetic clips (held-out subjects vs. other subjects):
 FID(real, real) is small and grows monotonically as noise, mean-pose collapse,
 time freezing and foot sliding are added; IS of real data is close to the
 number of classes and of one repeated clip is ~1; foot skate of ground truth is
-~0 and of feet dragged at 10 cm/s ~0.10 m/s; the two-sample test is ~50% on two
-real sets and ~100% on real vs. noisy.
+~0 and of feet dragged at 10 cm/s ~0.10 m/s.  The known answers of the feature space itself
+(small turns vs. semantic changes, C2ST) are in test_known_answers.py.
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from course_lib.evaluation import (
     foot_skate,
     inception_score,
     load_classifier,
-    two_sample_accuracy,
 )
 from course_lib.evaluation.classifiers import ClassifierData, accuracy, checkpoint_path
 from course_lib.representations import encode_quaternion_root
@@ -166,7 +165,7 @@ def test_foot_sliding_ladder_is_real_foot_skate(held_out):
     assert np.all(np.diff(skate) > 0) and skate[1] > 0.1
 
 
-# ----------------------------------------------------------------------------- IS, skate, two-sample
+# ----------------------------------------------------------------------------- IS, skate
 
 
 def test_inception_score_real_vs_repeated(held_out, action_clf):
@@ -185,15 +184,6 @@ def test_foot_skate_ground_truth_vs_dragged(held_out):
     assert abs(dragged - 0.10) < 0.03
 
 
-def test_two_sample_real_vs_real_and_noisy(held_out, other_real):
-    real, test = windows(other_real), windows(held_out)
-    same = two_sample_accuracy(real, test, seed=0)
-    noisy = two_sample_accuracy(real, _noise(test, 0.1, np.random.default_rng(1)), seed=0)
-    print(f"two-sample accuracy: real/real {same:.3f}, real/noisy {noisy:.3f}")
-    assert abs(same - 0.5) < 0.2
-    assert noisy > 0.95
-
-
 def test_distribution_metrics_reject_bad_input(action_clf):
     x = np.zeros((4, 30, 90), np.float32)
     with pytest.raises(ValueError, match="NaN"):
@@ -202,5 +192,5 @@ def test_distribution_metrics_reject_bad_input(action_clf):
         fid(x, x[..., :63], action_clf)
     with pytest.raises(ValueError, match="at least 2"):
         fid(np.zeros((1, 64)), np.zeros((5, 64)), action_clf)
-    with pytest.raises(ValueError, match=">= 4"):
-        two_sample_accuracy(np.zeros((3, 5)), np.zeros((10, 5)))
+    with pytest.raises(ValueError, match="NaN"):
+        inception_score(np.full((4, 30, 90), np.nan, np.float32), action_clf)

@@ -15,6 +15,7 @@ import torch
 from course_lib.evaluation import (
     apd,
     bone_length_violation,
+    c2st,
     facing_yaw,
     foot_skate,
     frechet_distance,
@@ -28,7 +29,7 @@ from course_lib.evaluation import (
     prediction_error,
     speed_error,
     table,
-    two_sample_accuracy,
+    wilson_interval,
 )
 from course_lib.motion import CONTACT_HEIGHT, Motion
 from course_lib.rotations import axis_angle_to_quat
@@ -182,13 +183,23 @@ def test_inception_score_from_probabilities():
         inception_score(np.full((5, 4), 0.5))
 
 
-def test_two_sample_accuracy_on_gaussians():
+def test_c2st_on_gaussians():
     rng = np.random.default_rng(1)
     a, b = rng.normal(size=(200, 8)), rng.normal(size=(200, 8))
-    assert abs(two_sample_accuracy(a, b, seed=0) - 0.5) < 0.1
-    assert two_sample_accuracy(a, b + 2.0, seed=0) > 0.95
-    seq = rng.normal(size=(60, 20, 5))  # (N, T, C) sequences are summarised first
-    assert two_sample_accuracy(seq, seq + rng.normal(scale=2.0, size=seq.shape), seed=0) > 0.95
+    same = c2st(a, b, seed=0)
+    assert same["ci_low"] <= 0.5 <= same["ci_high"] and same["n"] == 400
+    shifted = c2st(a, b + 2.0, seed=0)  # one direction: Phi(sqrt(8)) ~ 0.998 is the best possible
+    assert shifted["accuracy"] > 0.95 and shifted["ci_low"] > 0.9
+    slight = c2st(a, b + 0.25, seed=0)["accuracy"]  # the best possible: Phi(0.25 sqrt(8) / 2) = 0.638
+    assert 0.55 < slight < 0.72
+
+
+def test_wilson_interval_known_values():
+    low, high = wilson_interval(50, 100)  # textbook: 0.4038 .. 0.5962
+    np.testing.assert_allclose([low, high], [0.4038, 0.5962], atol=1e-4)
+    assert wilson_interval(0, 10)[0] == 0.0 and wilson_interval(10, 10)[1] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="correct"):
+        wilson_interval(11, 10)
 
 
 # ----------------------------------------------------------------------------- bad input

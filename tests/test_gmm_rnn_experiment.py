@@ -39,10 +39,11 @@ def test_quality_table_rows(setup):
     assert list(rows) == list(X.ROWS)
     for name, r in rows.items():
         extra = {"contact_agreement"} if name != "Mocap" else set()
-        assert set(r) == {"foot_skate", "jitter", "penetration", "fid", "is", "two_sample"} | extra, name
+        keys = {"foot_skate", "jitter", "penetration", "fid", "is", "c2st", "c2st_low", "c2st_high"}
+        assert set(r) == keys | extra, name
         assert 0.0 <= r.get("contact_agreement", 0.5) <= 1.0
         assert all(np.isfinite(v) for v in r.values()), name
-        assert 0.0 <= r["two_sample"] <= 1.0 and 1.0 <= r["is"] <= 4.0 + 1e-9
+        assert 0.0 <= r["c2st_low"] <= r["c2st"] <= r["c2st_high"] <= 1.0 and 1.0 <= r["is"] <= 4.0 + 1e-9
     assert rows["Mocap"]["foot_skate"] < 0.05  # the generator's planted feet barely move
     assert rows["Mocap"]["penetration"] < 0.005  # and stay on the floor
     # an untrained RNN skates; enforcing its predicted contacts removes some of GAN2's skate

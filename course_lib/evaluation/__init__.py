@@ -3,7 +3,7 @@
 - `metrics`: prediction/pose error (Habibie 2017 sec. 4.3), foot skate, ground
   penetration, jitter, bone-length violation, control following, APD, NPSS;
 - `classifiers`: Ghorbani 2020 Table 1 action/style classifiers (shipped checkpoints);
-- `distribution`: FID, Inception Score (Ghorbani eq. 27-29), two-sample test;
+- `distribution`: FID, Inception Score (Ghorbani eq. 27-29), the classifier two-sample test (C2ST);
 - `tables`: our numbers beside the paper's as Markdown / HTML / dict.
 
 Importing this package loads nothing from disk; the classifiers load on first use.  The
@@ -32,8 +32,7 @@ from course_lib.evaluation.tables import ResultsTable, table
 
 _LAZY = {
     "classifiers": ("ClassifierConfig", "MotionClassifier", "accuracy", "load_classifier", "motions_to_batch"),
-    "distribution": ("classifier_features", "fid", "frechet_distance", "inception_score", "summary_features",
-                     "two_sample_accuracy"),
+    "distribution": ("c2st", "classifier_features", "fid", "frechet_distance", "inception_score", "wilson_interval"),
 }
 
 
@@ -49,9 +48,8 @@ def __dir__():
 
 
 __all__ = [
-    "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation",
+    "ClassifierConfig", "MotionClassifier", "c2st", "ResultsTable", "accuracy", "apd", "bone_length_violation",
     "classifier_features", "facing_yaw", "fid", "foot_skate", "frechet_distance", "ground_penetration",
     "heading_error", "inception_score", "jitter", "load_classifier", "motions_to_batch", "npss", "path_distance",
-    "pose_error", "prediction_error", "root_relative", "speed_error", "summary_features", "table",
-    "two_sample_accuracy",
+    "pose_error", "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
 ]

@@ -4,7 +4,18 @@
 
 The input is the ``quaternion_root`` representation (Ghorbani's own: 21 local
 quaternions + 6 root features = 90 channels) at 30 fps, normalised with the
-training set's per-channel mean and std (stored as buffers in the checkpoint).
+training set's per-channel mean and std (stored as buffers in the checkpoint),
+with two deliberate choices about channels that barely vary (`set_normalization`):
+
+- the *fixed* degrees of freedom of the training data (28 of the 84 quaternion
+  channels: hinge joints' off-axis components, shoulders and hands,
+  `course_lib.datasets.FixedDofs`) are dropped (multiplied by 0): the network
+  never saw them vary, so their first-layer weights never learned anything and
+  any value there would be scored by random weights;
+- every other channel's scale is floored at ``scale_floor`` = 0.05 (a quaternion
+  component of 0.05 is a turn of about 6 degrees; 0.05 m/s, m or rad for the root
+  features), so that a channel with a tiny spread (the root's residual yaw: sd 0.002)
+  is not amplified into a detector of invisible changes.
 The pooled 64-D vector before the final FC layer is the feature space of FID
 (eq. 29); the softmax of the FC output gives p(a|X) for the Inception Score
 (eq. 27-28).  The classifiers are trained on half of the training subjects
@@ -62,6 +73,7 @@ class ClassifierConfig:
     fps: float = 30.0  # frame rate the inputs are resampled to (Ghorbani: 30)
     window: int = 60  # frames per training window (2 s)
     actions: tuple[str, ...] = ACTIONS  # the actions whose clips it is trained and tested on
+    scale_floor: float = 0.05  # smallest per-channel scale of the input normalisation (about 6 degrees)
 
     @classmethod
     def for_task(cls, task: str) -> "ClassifierConfig":
@@ -89,12 +101,30 @@ class MotionClassifier(nn.Module):
         self.fc = nn.Linear(h, len(config.classes))
         self.register_buffer("mean", torch.zeros(c))  # input normalisation, set from the training set
         self.register_buffer("std", torch.ones(c))
+        self.register_buffer("keep", torch.ones(c))  # 0 on the fixed degrees of freedom: dropped from the input
+
+    def set_normalization(self, frames) -> None:
+        """Input normalisation from training frames (M, C) (numpy or torch): mean, std floored at
+        config.scale_floor, and keep = 0 on the channels the frames never vary (`FixedDofs`)."""
+        from course_lib.datasets import FixedDofs
+
+        f = torch.as_tensor(np.asarray(frames, np.float64)).reshape(-1, self.config.in_channels)
+        fixed = FixedDofs.detect(f)
+        self.mean.copy_(f.mean(0).float())
+        self.std.copy_(f.std(0).clamp_min(self.config.scale_floor).float())
+        self.keep.copy_(torch.from_numpy(~fixed.mask).float())
+
+    def fixed_dofs(self):
+        """The fixed degrees of freedom of the classifier's training data (`FixedDofs`: mask, constants)."""
+        from course_lib.datasets import FixedDofs
+
+        return FixedDofs(mask=(self.keep == 0).numpy(), values=self.mean.double().numpy())
 
     def features(self, x: torch.Tensor) -> torch.Tensor:
         """(N, T, C) -> (N, H) pooled activations of the last Conv1D block (FID's feature space)."""
         if x.ndim != 3 or x.shape[-1] != self.config.in_channels:
             raise ValueError(f"MotionClassifier: expected (N, T, {self.config.in_channels}), got {tuple(x.shape)}")
-        z = ((x - self.mean) / self.std).transpose(1, 2)  # (N, C, T)
+        z = ((x - self.mean) / self.std * self.keep).transpose(1, 2)  # (N, C, T), fixed channels dropped
         return self.pool(self.convs(z)).squeeze(-1)  # (N, H)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -229,9 +259,7 @@ def train_classifier(task: str, data: ClassifierData | None = None, steps: int =
     feats = [encode_quaternion_root(m if m.fps == config.fps else m.resample(config.fps)) for m in train]
     window = min(config.window, min(len(f) for f in feats))
     model = MotionClassifier(dataclasses.replace(config, window=window))
-    frames = np.concatenate(feats)
-    model.mean.copy_(torch.from_numpy(frames.mean(0)).float())
-    model.std.copy_(torch.from_numpy(frames.std(0) + 1e-3).float())  # + 1e-3: constant channels
+    model.set_normalization(np.concatenate(feats))
     sampler = _window_sampler(feats, labels_of(train, config), window, batch_size, np.random.default_rng(seed))
     history = fit(model, sampler, steps=steps, steps_per_epoch=50, lr=lr, seed=seed, progress=progress,
                   desc=f"{task} classifier")

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from course_lib.datasets import WindowDataset, load_stats
+from course_lib.datasets import FixedDofs, WindowDataset, load_stats
 from course_lib.motion import Motion
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 from course_lib.reproduce import rounded
@@ -174,8 +174,9 @@ def train_gan(pool: torch.Tensor, ds: WindowDataset, spec: Lesson03Spec, contact
 
 
 def to_motions(features: torch.Tensor, stats, like: list[Motion], fps: float) -> list[Motion]:
-    """Normalised features (N, T, D) -> Motions, motion i decoded on like[i]'s skeleton from its start."""
-    raw = features.double().numpy() * stats[1] + stats[0]
+    """Normalised features (N, T, D) -> Motions, motion i decoded on like[i]'s skeleton from its start; the
+    training data's fixed degrees of freedom (the columns at the normalisation's std floor) at their constants."""
+    raw = FixedDofs.from_stats(*stats).apply(features.double().numpy() * stats[1] + stats[0])
     return [decode_state_features(f, m.skeleton, fps, root_start(m)) for f, m in zip(raw, like, strict=True)]
 
 
@@ -212,22 +213,23 @@ def foot_skate_of(positions: np.ndarray, fps: float) -> float:
 
 
 def quality_row(motions, mocap: list[Motion], fps: float = 30.0, seed: int = 0) -> dict:
-    """Foot skate (m/s), jitter (m/s^3), ground penetration (m), FID, IS and two-sample accuracy of a set
-    against mocap."""
-    from course_lib.evaluation import fid, foot_skate, ground_penetration, inception_score, jitter, two_sample_accuracy
+    """Foot skate (m/s), jitter (m/s^3), ground penetration (m), FID, IS and the C2ST accuracy (with its 95 %
+    interval) of a set against mocap."""
+    from course_lib.evaluation import c2st, fid, foot_skate, ground_penetration, inception_score, jitter
 
     pos = np.stack([m.positions() for m in motions])
+    test = c2st(mocap, motions, seed=seed)
     return {"foot_skate": foot_skate(pos, fps=fps), "jitter": jitter(pos, fps=fps),
             "penetration": ground_penetration(pos, skeleton=motions[0].skeleton),
             "fid": fid(mocap, motions), "is": inception_score(motions),
-            "two_sample": two_sample_accuracy(mocap, motions, seed=seed)}
+            "c2st": test["accuracy"], "c2st_low": test["ci_low"], "c2st_high": test["ci_high"]}
 
 
 def quality_table(model, refiners: dict, test: list[Motion], stats, spec: Lesson03Spec, seed: int = 0) -> dict:
     """The Fig. 12 stand-in: {row: quality_row} for ROWS (refiners: {"GAN1": R1, "GAN2": R2}).
 
     Generated rows are measured against all held-out clips; the Mocap row is a random half of them
-    against the other half (the best a set of that size can score: FID > 0, two-sample ~0.5)."""
+    against the other half (the best a set of that size can score: FID > 0, C2ST ~0.5)."""
     T = int(round(spec.eval_seconds * spec.fps))
     mocap = [m[:T] for m in test]
     sets = continuations(model, refiners, test, stats, spec, seed)

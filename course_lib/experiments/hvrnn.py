@@ -14,11 +14,14 @@ L_CL (eq. 24) are trained here on s06-s31 and never used for evaluation, so that
 optimised against the network that scores it.  The denoising autoencoder is trained on a
 different subset (the locomotion dataset) and applied to the training sequences.
 
-Evaluation (all seeded): 100 samples per action x style (800 per model) of 90 frames; IS and FID
-(Ghorbani eq. 27-29) on the shipped classifiers' centre 2-s windows, IS over the 8 attribute
+Evaluation (all seeded, repeated for EVAL_SEEDS = 3 generation seeds: mean and sd): 100 samples per
+action x style (800 per model) of 90 frames; IS and FID (Ghorbani eq. 27-29) on the shipped
+classifiers' centre 2-s windows against all held-out sequences, IS over the 8 attribute
 combinations (product of the action and style classifiers' probabilities, as the paper's 8
-classes) and over the 4 actions; the fraction of collapsed jump/lift samples; the APD of one
-attribute.  Nothing runs at import time.
+classes) and over the 4 actions; the classifier two-sample test (C2ST) in the same features; the
+fraction of collapsed jump/lift samples; the APD of one attribute.  Every generator's output has
+the training data's fixed degrees of freedom set to their constants (`PoseCoding.from_model`), and
+the classifiers drop them from their inputs.  Nothing runs at import time.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ CHECKPOINTS = ROOT / "checkpoints"
 FPS = 30.0
 SEQ_LEN = 90  # frames per training / generated sequence (3 s at 30 fps); the paper: 200
 COMMAND = "python -m course_lib.reproduce hvrnn"
+EVAL_SEEDS = 3  # generation seeds of the evaluation: FID, IS, C2ST, collapse and APD are mean +- sd over them
 # Ghorbani et al. 2020, Table 2 (AMASS, 8 attribute combinations; their real data IS 7.64, FID 0 by definition)
 PAPER_TABLE2 = {"QuaterNet": {"IS": 5.12, "FID": 92.31}, "ERD": {"IS": 5.91, "FID": 86.42},
                 "Proposed(SL)": {"IS": 6.45, "FID": 31.41}, "Proposed(NL)": {"IS": 7.11, "FID": 17.3},
@@ -150,6 +154,15 @@ def denoise(model, x: torch.Tensor, chunk: int = 256) -> torch.Tensor:
     return torch.cat([model(x[i:i + chunk]) for i in range(0, len(x), chunk)])
 
 
+def clean(dae, x: torch.Tensor) -> torch.Tensor:
+    """The DAE applied to training sequences (N, T, 90), then the data's fixed degrees of freedom put back
+    (the residual network nudges every channel a little) and the quaternions renormalised."""
+    from course_lib.datasets import FixedDofs
+    from course_lib.models.hvrnn import normalize_pose
+
+    return normalize_pose(FixedDofs.detect(x).apply(denoise(dae, x)))
+
+
 def train_loss_classifiers(data: dict, steps: int = 300, seed: int = 0, progress: bool = False) -> list:
     """Action and style classifiers for L_CL (eq. 24), Table 1's network, trained on the training
     sequences of the subjects the shipped evaluation classifiers never saw."""
@@ -165,9 +178,7 @@ def train_loss_classifiers(data: dict, steps: int = 300, seed: int = 0, progress
         seed_everything(seed)
         config = ClassifierConfig.for_task(task)
         clf = MotionClassifier(config)
-        frames = part["x"].reshape(-1, part["x"].shape[-1])
-        clf.mean.copy_(frames.mean(0))
-        clf.std.copy_(frames.std(0) + 1e-3)
+        clf.set_normalization(part["x"].reshape(-1, part["x"].shape[-1]))  # as the evaluation classifiers
         sampler = _window_sampler(feats, labels.numpy(), config.window, 32, np.random.default_rng(seed))
         fit(clf, sampler, steps=steps, lr=5e-3, progress=progress, desc=f"L_CL {task} classifier")
         out.append(clf.eval())
@@ -289,9 +300,10 @@ def collapsed_fraction(motions: list[Motion], thresholds: tuple[float, float]) -
     return float(np.mean((speed < thresholds[0]) & (var < thresholds[1])))
 
 
-def scores(motions: list[Motion], reference: list[Motion], classifiers: dict) -> dict:
-    """IS (8 combinations and 4 actions), FID (action and style classifier features), label accuracies."""
-    from course_lib.evaluation import classifier_features, fid, inception_score, motions_to_batch
+def scores(motions: list[Motion], reference: list[Motion], classifiers: dict, seed: int = 0) -> dict:
+    """IS (8 combinations and 4 actions), FID (action and style classifier features), label accuracies, and
+    the C2ST accuracy with its 95 % interval (both classifiers' features)."""
+    from course_lib.evaluation import c2st, classifier_features, fid, inception_score, motions_to_batch
 
     out = {}
     probs = {}
@@ -306,11 +318,13 @@ def scores(motions: list[Motion], reference: list[Motion], classifiers: dict) ->
     out["IS"] = inception_score(joint)
     out["IS_action"] = inception_score(probs["action"])
     out["FID"] = out["FID_action"]
+    test = c2st(reference, motions, seed=seed, classifiers=[classifiers["action"], classifiers["style"]])
+    out.update(C2ST=test["accuracy"], C2ST_low=test["ci_low"], C2ST_high=test["ci_high"])
     return out
 
 
 def evaluate(generated: dict[str, list[Motion]], real_test: list[Motion], real_train: list[Motion],
-             apd_attribute=("jump", "A")) -> dict:
+             apd_attribute=("jump", "A"), seed: int = 0) -> dict:
     """Table 2 (IS/FID per model and for real data), collapse fractions for jump/lift, APD for one attribute."""
     from course_lib.evaluation import apd, load_classifier
 
@@ -318,8 +332,8 @@ def evaluate(generated: dict[str, list[Motion]], real_test: list[Motion], real_t
     held = classifier_subjects()
     # real clips no classifier was trained on (in CI's tiny data there are none: all training clips then)
     real_other = [m for m in real_train if m.subject not in held] or real_train
-    rows = {label: scores(ms, real_test, classifiers) for label, ms in generated.items()}
-    rows["Real data"] = scores(real_other, real_test, classifiers)
+    rows = {label: scores(ms, real_test, classifiers, seed) for label, ms in generated.items()}
+    rows["Real data"] = scores(real_other, real_test, classifiers, seed)
     real_all = real_train + real_test
     thresholds = {a: collapse_thresholds([m for m in real_all if m.action == a]) for a in ("jump", "lift")}
     collapse = {label: {a: collapsed_fraction([m for m in ms if m.action == a], thresholds[a]) for a in thresholds}
@@ -338,17 +352,39 @@ def evaluate(generated: dict[str, list[Motion]], real_test: list[Motion], real_t
                        "real_train_unseen_by_classifiers": len(real_other)}}
 
 
+def over_seeds(per_seed: list[dict]) -> tuple[dict, dict]:
+    """Nested dicts of numbers, one per generation seed -> (mean, sd) dicts of the same shape."""
+    first = per_seed[0]
+    if isinstance(first, dict):
+        pairs = {k: over_seeds([r[k] for r in per_seed]) for k in first}
+        return {k: m for k, (m, _) in pairs.items()}, {k: sd for k, (_, sd) in pairs.items()}
+    values = np.array(per_seed, dtype=float)
+    return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
+
+
 def eval_hvrnn(seed: int = 0, progress: bool = True, checkpoints: Path = CHECKPOINTS, n_per: int = 100,
-               mode: str | None = "full", models: dict | None = None) -> dict:
-    """Generate n_per samples per action x style with every shipped model and score them -> JSON-able dict."""
+               mode: str | None = "full", models: dict | None = None, seeds: int = EVAL_SEEDS) -> dict:
+    """Generate n_per samples per action x style with every shipped model, `seeds` times (generation seeds
+    seed, seed + 1, ...), and score them -> JSON-able dict: "table2", "collapse", "apd" are means over the
+    seeds, "table2_sd", "collapse_sd", "apd_sd" their standard deviations, "per_seed" each run."""
     t0 = time.perf_counter()
     data = load_data(mode)
     models = models or {name: load_model(name, checkpoints) for name in model_specs()}
     labels = {name: spec.label for name, spec in model_specs().items()}
-    generated = {labels[n]: to_motions(generate(m, n_per, SEQ_LEN, seed)) for n, m in models.items()}
     real_test = to_motions(data["test"])
     real_train = to_motions(data["train"])
-    out = evaluate(generated, real_test, real_train)
+    runs = []
+    for s in range(seed, seed + seeds):
+        generated = {labels[n]: to_motions(generate(m, n_per, SEQ_LEN, s)) for n, m in models.items()}
+        runs.append(evaluate(generated, real_test, real_train, seed=s))
+        print(f"hvrnn eval seed {s}: " + ", ".join(f"{k} FID {r['FID']:.0f}" for k, r in runs[-1]["table2"].items()),
+              file=sys.stderr)
+    out = dict(runs[0])  # thresholds, attribute and counts are the same in every run
+    for key in ("table2", "collapse", "apd"):
+        out[key], out[f"{key}_sd"] = over_seeds([r[key] for r in runs])
+    out["per_seed"] = {str(s): {k: r[k] for k in ("table2", "collapse", "apd")} for s, r in
+                       zip(range(seed, seed + seeds), runs, strict=True)}
+    out["generation_seeds"] = list(range(seed, seed + seeds))
     out["eval_seconds"] = round(time.perf_counter() - t0, 1)
     return rounded(out, 4)
 
@@ -361,7 +397,7 @@ def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Pa
     t0 = time.perf_counter()
     data = load_data(mode)
     dae, dae_hist = train_dae(max(2, int(300 * scale)), seed, mode, progress)
-    train = dict(data["train"], x=denoise(dae, data["train"]["x"]))
+    train = dict(data["train"], x=clean(dae, data["train"]["x"]))
     timings = {"data_and_dae_seconds": round(time.perf_counter() - t0, 1)}
     save_checkpoint(dae, dae.config, checkpoints / "hvrnn_dae.pt", command=COMMAND, overwrite=True,
                     metrics={"train_seconds": round(dae_hist.seconds, 1), "steps": dae_hist.num_steps,

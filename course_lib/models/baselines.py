@@ -343,8 +343,7 @@ class AttributeRnn(PoseCoding, nn.Module):
         n_state = (4 if c.kind == "erd" else 2) * H  # (h, c) of two LSTM layers, or h of two GRU layers
         self.h0_mu = nn.Parameter(torch.zeros(c.n_actions * c.n_styles, n_state))
         self.h0_logstd = nn.Parameter(torch.full((c.n_actions * c.n_styles, n_state), math.log(0.1)))
-        self.register_buffer("root_mean", torch.zeros(NUM_ROOT))
-        self.register_buffer("root_std", torch.ones(NUM_ROOT))
+        self.register_pose_buffers(c.pose_dim)
         self.register_buffer("step", torch.zeros((), dtype=torch.long))
 
     def output_layer(self) -> tuple[nn.Linear, int]:

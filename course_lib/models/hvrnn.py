@@ -236,14 +236,28 @@ def check_poses(x: torch.Tensor, dim: int, name: str = "x") -> None:
 
 class PoseCoding:
     """What every lesson-05 generator shares (HierarchicalVrnn, baselines.AttributeRnn): raw poses <->
-    model space (root features standardised with buffers root_mean/root_std) and attribute coding."""
+    model space (root features standardised with buffers root_mean/root_std), the training data's fixed
+    degrees of freedom (buffers fixed_mask/fixed_values, `datasets.FixedDofs`) and attribute coding."""
+
+    def register_pose_buffers(self, pose_dim: int) -> None:
+        """The normalisation statistics, set by `set_stats` and saved with the weights."""
+        self.register_buffer("root_mean", torch.zeros(NUM_ROOT))
+        self.register_buffer("root_std", torch.ones(NUM_ROOT))
+        self.register_buffer("fixed_mask", torch.zeros(pose_dim, dtype=torch.bool))
+        self.register_buffer("fixed_values", torch.zeros(pose_dim))
 
     def set_stats(self, x: torch.Tensor) -> None:
-        """Root-feature mean/std from training poses x (N, T, D) (or (M, D)), and a data-dependent start: the
-        output layer begins at the mean training pose, its weights scaled down by 10 (faster early training)."""
+        """Root-feature mean/std and the fixed degrees of freedom from training poses x (N, T, D) (or (M, D)),
+        and a data-dependent start: the output layer begins at the mean training pose, its weights scaled
+        down by 10 (faster early training)."""
+        from course_lib.datasets import FixedDofs
+
         root = x.reshape(-1, x.shape[-1])[:, -NUM_ROOT:].double()
         self.root_mean.copy_(root.mean(0).float())
         self.root_std.copy_(root.std(0).clamp_min(1e-3).float())
+        fixed = FixedDofs.detect(x)
+        self.fixed_mask.copy_(torch.from_numpy(fixed.mask))
+        self.fixed_values.copy_(torch.from_numpy(fixed.values).float())
         last, frames = self.output_layer()
         with torch.no_grad():
             last.weight.mul_(0.1)
@@ -253,9 +267,17 @@ class PoseCoding:
         """raw poses (..., D) -> model space: quaternions as they are, root standardised."""
         return torch.cat((x[..., :-NUM_ROOT], (x[..., -NUM_ROOT:] - self.root_mean) / self.root_std), -1)
 
+    def fixed_dofs(self):
+        """The training data's fixed degrees of freedom (`datasets.FixedDofs`) recorded by `set_stats`."""
+        from course_lib.datasets import FixedDofs
+
+        return FixedDofs(mask=self.fixed_mask.numpy(), values=self.fixed_values.double().numpy())
+
     def from_model(self, y: torch.Tensor) -> torch.Tensor:
-        """model-space outputs (..., D) -> raw poses with unit quaternions."""
+        """model-space outputs (..., D) -> raw poses with unit quaternions, the fixed degrees of freedom at
+        the data's constants (the same rule for every lesson-05 generator)."""
         raw = torch.cat((y[..., :-NUM_ROOT], y[..., -NUM_ROOT:] * self.root_std + self.root_mean), -1)
+        raw = torch.where(self.fixed_mask, self.fixed_values.to(raw.dtype), raw)
         return normalize_pose(raw, self.config.num_joints)
 
     def attributes(self, action, style) -> tuple[torch.Tensor, torch.Tensor]:
@@ -303,8 +325,7 @@ class HierarchicalVrnn(PoseCoding, nn.Module):
         if len(alpha) != c.num_joints:
             raise ValueError(f"the canonical skeleton has {len(alpha)} joints, config says {c.num_joints}")
         self.register_buffer("alpha", torch.tensor(alpha, dtype=torch.float32))
-        self.register_buffer("root_mean", torch.zeros(NUM_ROOT))
-        self.register_buffer("root_std", torch.ones(NUM_ROOT))
+        self.register_pose_buffers(c.pose_dim)
         self.register_buffer("step", torch.zeros((), dtype=torch.long))  # optimiser steps seen (schedules)
         self.classifiers: list = []  # frozen MotionClassifiers for L_CL, not part of the state_dict
 
