@@ -6,16 +6,56 @@ Conventions (stated once, used everywhere):
 - all functions are torch, batched over any leading dimensions ``(...)``,
   differentiable, and have no NaN values or gradients at the identity or at
   180 degrees (the small-angle branches use Taylor series, never 0/0);
-- rotation matrices act on column vectors: ``v' = R v``.
+- rotation matrices act on column vectors: ``v' = R v``;
+- numpy arrays are accepted wherever a tensor is (converted, same dtype); results are tensors;
+- invalid rotations raise ValueError instead of giving a silent wrong answer: a zero, NaN or
+  clearly non-unit quaternion (| |q| - 1 | > UNIT_TOL) where a unit one is needed
+  (`quat_to_matrix`, `quat_to_expmap`, `quat_to_euler`, `quat_to_sixd`, FK), a reflection
+  (determinant -1) in `matrix_to_quat`, a zero axis with a non-zero angle in
+  `axis_angle_to_quat`.  Norms within UNIT_TOL are used as given, so results for unit inputs
+  are exactly those of the plain formulas.
 
 Taught in notebooks/00_skeletons_and_rotations.ipynb.
 """
 
 from __future__ import annotations
 
+import functools
+
+import numpy as np
 import torch
 
 _EPS = 1e-8
+UNIT_TOL = 1e-2  # | |q| - 1 | above this is not a unit quaternion (rounding, normalised model outputs: far below)
+
+
+def _tensor_args(fn):
+    """Let `fn` take numpy arrays wherever it takes tensors (students pass ``motion.rotations``)."""
+    def conv(a):
+        return torch.from_numpy(np.ascontiguousarray(a)) if isinstance(a, np.ndarray) else a
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        return fn(*map(conv, args), **{k: conv(v) for k, v in kwargs.items()})
+    return wrapper
+
+
+def check_unit(q: torch.Tensor, name: str, dim: int = -1) -> None:
+    """Raise ValueError unless every quaternion of q (components along `dim`) is finite with norm 1 +- UNIT_TOL."""
+    with torch.no_grad():
+        n = torch.linalg.vector_norm(q.detach(), dim=dim)
+        if n.numel() == 0:
+            return
+        lo, hi = torch.aminmax(n)  # NaN anywhere gives NaN here, which fails both tests
+        if not (bool(lo >= 1 - UNIT_TOL) and bool(hi <= 1 + UNIT_TOL)):
+            bad = ~((n >= 1 - UNIT_TOL) & (n <= 1 + UNIT_TOL))
+            where = tuple(int(i) for i in bad.nonzero()[0])
+            norm = float(n[where])
+            what = "0 (a zero quaternion is no rotation)" if norm < _EPS else f"{norm:.6g}"
+            at = f" at index {where}" if where else ""
+            raise ValueError(f"{name}: the quaternion{at} has norm {what}; expected unit quaternions "
+                             f"(w, x, y, z) with | |q| - 1 | <= {UNIT_TOL}: normalise with quat_normalize, or look "
+                             "for NaN or a zero")
 
 
 def _check_last(x: torch.Tensor, n: int, name: str) -> None:
@@ -42,6 +82,7 @@ def quat_identity(shape: tuple[int, ...] = (), dtype=torch.float32) -> torch.Ten
     return q
 
 
+@_tensor_args
 def quat_mul(a: torch.Tensor, b: torch.Tensor, dim: int = -1) -> torch.Tensor:
     """Hamilton product a * b: (..., 4), (..., 4) -> (..., 4); b is applied first.
 
@@ -62,12 +103,14 @@ def quat_mul(a: torch.Tensor, b: torch.Tensor, dim: int = -1) -> torch.Tensor:
     )
 
 
+@_tensor_args
 def quat_conjugate(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) -> (..., 4) conjugate (w, -x, -y, -z), the inverse of a unit quaternion."""
     _check_last(q, 4, "quat_conjugate")
     return q * q.new_tensor([1.0, -1.0, -1.0, -1.0])
 
 
+@_tensor_args
 def quat_normalize(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) -> (..., 4) unit quaternions; raises on (near) zero quaternions."""
     _check_last(q, 4, "quat_normalize")
@@ -77,11 +120,13 @@ def quat_normalize(q: torch.Tensor) -> torch.Tensor:
     return q / n
 
 
+@_tensor_args
 def quat_canonical(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) -> (..., 4) the representative of q / -q with w >= 0."""
     return torch.where(q[..., :1] < 0, -q, q)
 
 
+@_tensor_args
 def quat_rotate(q: torch.Tensor, v: torch.Tensor, dim: int = -1) -> torch.Tensor:
     """Rotate vectors: q (..., 4) unit, v (..., 3) -> (..., 3).  v' = q v q*.
 
@@ -97,9 +142,11 @@ def quat_rotate(q: torch.Tensor, v: torch.Tensor, dim: int = -1) -> torch.Tensor
                         vz + w * tz + x * ty - y * tx), dim=dim)
 
 
+@_tensor_args
 def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) unit quaternions -> (..., 3, 3) rotation matrices."""
     _check_last(q, 4, "quat_to_matrix")
+    check_unit(q, "quat_to_matrix")
     w, x, y, z = q.unbind(-1)
     rows = (
         1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
@@ -109,10 +156,12 @@ def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
     return torch.stack(rows, dim=-1).reshape(*q.shape[:-1], 3, 3)
 
 
+@_tensor_args
 def matrix_to_quat(m: torch.Tensor) -> torch.Tensor:
     """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions with w >= 0.
 
-    Shepperd's method: of the four algebraically equal formulas, use the one
+    Raises ValueError on a matrix whose determinant is not 1 (+- UNIT_TOL): a reflection (-1)
+    has no quaternion.  Shepperd's method: of the four algebraically equal formulas, use the one
     whose denominator is largest (>= 1/2), so nothing divides by ~0 at 180 degrees.
     """
     if m.shape[-2:] != (3, 3):
@@ -120,6 +169,15 @@ def matrix_to_quat(m: torch.Tensor) -> torch.Tensor:
     m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    with torch.no_grad():
+        det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
+        bad = ~((det - 1).abs() <= UNIT_TOL)
+        if bool(bad.any()):
+            where = tuple(int(i) for i in bad.nonzero()[0])
+            at = f" at index {where}" if where else ""
+            raise ValueError(f"matrix_to_quat: the matrix{at} has determinant {float(det[where]):.6g}, "
+                             "not 1: not a rotation (a reflection has -1, NaN entries give NaN); a rotation "
+                             "nearby: gram_schmidt(m)")
     # 4 q_i^2 for i = w, x, y, z
     four_sq = torch.stack(
         (1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22), -1
@@ -140,9 +198,11 @@ def matrix_to_quat(m: torch.Tensor) -> torch.Tensor:
     return quat_canonical(q / torch.linalg.vector_norm(q, dim=-1, keepdim=True))
 
 
+@_tensor_args
 def quat_to_expmap(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) unit quaternions -> (..., 3) axis * angle, angle in [0, pi]."""
     _check_last(q, 4, "quat_to_expmap")
+    check_unit(q, "quat_to_expmap")
     q = quat_canonical(q)
     w, u = q[..., 0], q[..., 1:]
     n, small = _safe_norm(u)
@@ -153,6 +213,7 @@ def quat_to_expmap(q: torch.Tensor) -> torch.Tensor:
     return u * factor[..., None]
 
 
+@_tensor_args
 def expmap_to_quat(r: torch.Tensor) -> torch.Tensor:
     """(..., 3) axis * angle -> (..., 4) unit quaternions."""
     _check_last(r, 3, "expmap_to_quat")
@@ -164,14 +225,28 @@ def expmap_to_quat(r: torch.Tensor) -> torch.Tensor:
     return torch.cat((w[..., None], r * sinc[..., None]), -1)
 
 
-def axis_angle_to_quat(axis: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
-    """axis (..., 3) (any nonzero length), angle (...) radians -> (..., 4)."""
+@_tensor_args
+def axis_angle_to_quat(axis: torch.Tensor, angle: torch.Tensor | float) -> torch.Tensor:
+    """axis (..., 3) (any nonzero length), angle (...) radians -> (..., 4).
+
+    A zero axis has no direction: ValueError, unless its angle is 0 (then the identity).
+    """
     _check_last(axis, 3, "axis_angle_to_quat")
-    axis = axis / torch.linalg.vector_norm(axis, dim=-1, keepdim=True)
+    angle = angle if isinstance(angle, torch.Tensor) else torch.as_tensor(angle, dtype=axis.dtype)
+    n = torch.linalg.vector_norm(axis, dim=-1, keepdim=True)
+    zero = n[..., 0] < 1e-12
+    if bool(zero.any()):
+        if bool((zero & (angle != 0)).any()) or not bool(torch.isfinite(axis).all()):
+            raise ValueError("axis_angle_to_quat: an axis has zero length (no direction) and a non-zero angle")
+        n = torch.where(zero[..., None], torch.ones_like(n), n)
+    if not bool(torch.isfinite(n).all()):
+        raise ValueError("axis_angle_to_quat: an axis contains NaN or inf")
+    axis = axis / n
     half = 0.5 * angle
     return torch.cat((torch.cos(half)[..., None], axis * torch.sin(half)[..., None]), -1)
 
 
+@_tensor_args
 def quat_slerp(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float) -> torch.Tensor:
     """Spherical interpolation along the short arc: (..., 4), (..., 4), t (...) -> (..., 4)."""
     _check_last(q0, 4, "quat_slerp q0")
@@ -216,6 +291,7 @@ def _axis_quat(angle: torch.Tensor, axis: int) -> torch.Tensor:
     return torch.stack(parts, -1)
 
 
+@_tensor_args
 def euler_to_quat(angles: torch.Tensor, order: str) -> torch.Tensor:
     """angles (..., 3) radians -> (..., 4).
 
@@ -230,6 +306,7 @@ def euler_to_quat(angles: torch.Tensor, order: str) -> torch.Tensor:
     return quat_mul(quat_mul(q0, q1), q2)
 
 
+@_tensor_args
 def euler_to_matrix(angles: torch.Tensor, order: str) -> torch.Tensor:
     """angles (..., 3) radians -> (..., 3, 3); order as in `euler_to_quat`."""
     return quat_to_matrix(euler_to_quat(angles, order))
@@ -248,6 +325,7 @@ def _norm(v: torch.Tensor, dim: int = -1) -> torch.Tensor:
     return torch.where(pos, torch.sqrt(torch.where(pos, sq, torch.ones_like(sq))), torch.zeros_like(sq))
 
 
+@_tensor_args
 def matrix_to_euler(m: torch.Tensor, order: str) -> torch.Tensor:
     """(..., 3, 3) rotation matrices -> (..., 3) angles; the middle angle lies in [-pi/2, pi/2].
 
@@ -268,6 +346,7 @@ def matrix_to_euler(m: torch.Tensor, order: str) -> torch.Tensor:
     return angles.flip(-1) if extrinsic else angles
 
 
+@_tensor_args
 def quat_to_euler(q: torch.Tensor, order: str) -> torch.Tensor:
     """(..., 4) unit quaternions -> (..., 3) angles, see `matrix_to_euler` and `euler_to_quat`."""
     _check_last(q, 4, "quat_to_euler")
@@ -291,6 +370,7 @@ def _frame_from_two(a1: torch.Tensor, a2: torch.Tensor) -> torch.Tensor:
     return torch.stack((b1, b2, b3), -1)
 
 
+@_tensor_args
 def gram_schmidt(m: torch.Tensor) -> torch.Tensor:
     """(..., 3, 3) -> (..., 3, 3) nearby rotation: Gram-Schmidt on columns 0 and 1, column 2 = c0 x c1.
 
@@ -301,6 +381,7 @@ def gram_schmidt(m: torch.Tensor) -> torch.Tensor:
     return _frame_from_two(m[..., :, 0], m[..., :, 1])
 
 
+@_tensor_args
 def matrix_to_sixd(m: torch.Tensor) -> torch.Tensor:
     """(..., 3, 3) -> (..., 6): first column then second column of R."""
     if m.shape[-2:] != (3, 3):
@@ -308,17 +389,20 @@ def matrix_to_sixd(m: torch.Tensor) -> torch.Tensor:
     return torch.cat((m[..., :, 0], m[..., :, 1]), -1)
 
 
+@_tensor_args
 def sixd_to_matrix(d6: torch.Tensor) -> torch.Tensor:
     """(..., 6) any two non-parallel 3-vectors -> (..., 3, 3) rotation (Gram-Schmidt)."""
     _check_last(d6, 6, "sixd_to_matrix")
     return _frame_from_two(d6[..., :3], d6[..., 3:])
 
 
+@_tensor_args
 def quat_to_sixd(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) unit quaternions -> (..., 6)."""
     return matrix_to_sixd(quat_to_matrix(q))
 
 
+@_tensor_args
 def sixd_to_quat(d6: torch.Tensor) -> torch.Tensor:
     """(..., 6) -> (..., 4) unit quaternions with w >= 0."""
     return matrix_to_quat(sixd_to_matrix(d6))
@@ -328,6 +412,7 @@ def sixd_to_quat(d6: torch.Tensor) -> torch.Tensor:
 # Geodesic distances (Ghorbani et al. 2020, eq. 16-21)
 # ---------------------------------------------------------------------------
 
+@_tensor_args
 def quat_geodesic(q1: torch.Tensor, q2: torch.Tensor, kind: str = "d1") -> torch.Tensor:
     """(..., 4), (..., 4) unit quaternions -> (...) distance.
 
@@ -349,6 +434,7 @@ def quat_geodesic(q1: torch.Tensor, q2: torch.Tensor, kind: str = "d1") -> torch
     raise ValueError(f"quat_geodesic: kind must be 'd1', 'd2' or 'd3', got {kind!r}")
 
 
+@_tensor_args
 def matrix_geodesic(m1: torch.Tensor, m2: torch.Tensor) -> torch.Tensor:
     """(..., 3, 3), (..., 3, 3) rotations -> (...) angle in [0, pi] of R1 R2^T.
 

@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from course_lib.rotations import quat_mul, quat_rotate
+from course_lib.rotations import check_unit, quat_mul, quat_rotate
 
 CANONICAL_JOINTS = (
     "Hips",
@@ -176,11 +176,15 @@ def forward_kinematics(
 
     rotations: (..., J, 4) local unit quaternions; root_positions: (..., 3) world
     position of joint 0; offsets: (J, 3) or (..., J, 3) rest offsets; parents: (J,)
-    -> positions (..., J, 3), global rotations (..., J, 4).
+    -> positions (..., J, 3), global rotations (..., J, 4).  Tensors or numpy arrays (converted);
+    a zero, NaN or non-unit rotation (| |q| - 1 | > rotations.UNIT_TOL) raises ValueError,
+    because it would stretch the bones (doubled quaternions make a thigh 4x as long).
 
     Joints of equal depth are done together (6 steps for the canonical skeleton, not
     20) on a (J, 4, B) layout, so each step is a few dozen vectorised ops over B frames.
     """
+    rotations, root_positions, offsets = (torch.from_numpy(np.ascontiguousarray(x)) if isinstance(x, np.ndarray)
+                                          else x for x in (rotations, root_positions, offsets))
     J = len(parents)
     if rotations.shape[-2:] != (J, 4):
         raise ValueError(f"forward_kinematics: rotations must be (..., {J}, 4), got {tuple(rotations.shape)}")
@@ -190,6 +194,7 @@ def forward_kinematics(
                          f"got {tuple(root_positions.shape)}")
     if offsets.shape[-2:] != (J, 3):
         raise ValueError(f"forward_kinematics: offsets must be ({J}, 3) or (..., {J}, 3), got {tuple(offsets.shape)}")
+    check_unit(rotations, "forward_kinematics rotations")
     order, steps, inverse = _depth_levels(tuple(int(p) for p in parents))
     q = rotations.reshape(-1, J, 4).permute(1, 2, 0).index_select(0, order)  # (J, 4, B) in level order
     off = offsets.to(rotations.dtype)

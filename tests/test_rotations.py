@@ -6,6 +6,7 @@ Also: gradients are finite at the identity and at 180 degrees, and wrong shapes 
 from __future__ import annotations
 
 import itertools
+import re
 
 import numpy as np
 import pytest
@@ -304,3 +305,65 @@ def test_matrix_to_quat_gradient_matches_finite_differences_near_half_turn():
 def test_wrong_shapes_raise_clear_errors(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+# ---------------------------------------------------------------------------
+# Invalid rotations are errors, numpy inputs are tensors
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("q, words", [
+    ([0.0, 0.0, 0.0, 0.0], "norm 0 (a zero quaternion is no rotation)"),
+    ([1.0, 1.0, 0.0, 0.0], "norm 1.41421"),
+    ([float("nan"), 0.0, 0.0, 0.0], "norm nan"),
+    ([1.02, 0.0, 0.0, 0.0], "norm 1.02"),
+])
+@pytest.mark.parametrize("fn", [rot.quat_to_matrix, rot.quat_to_expmap, lambda q: rot.quat_to_euler(q, "ZYX"),
+                                rot.quat_to_sixd])
+def test_invalid_quaternions_raise(fn, q, words):
+    with pytest.raises(ValueError, match=re.escape(words) + ".*normalise with quat_normalize"):
+        fn(torch.tensor([[1.0, 0.0, 0.0, 0.0], q], dtype=torch.float64))
+
+
+def test_near_unit_quaternions_are_used_as_given():
+    """Within UNIT_TOL nothing is normalised: the plain formula's numbers, bit for bit."""
+    q = torch.tensor([1.005, 0.0, 0.0, 0.0], dtype=torch.float64)
+    assert rot.quat_to_matrix(q)[1, 1] == 1 - 2 * 0.0 and rot.quat_to_matrix(q)[0, 0] == 1.0
+    q = rot.quat_normalize(torch.randn(50, 4, dtype=torch.float64)) * 1.004
+    w, x, y, z = q.unbind(-1)
+    assert torch.equal(rot.quat_to_matrix(q)[:, 0, 1], 2 * (x * y - w * z))
+
+
+def test_numpy_inputs_give_tensors():
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(5, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    m = rot.quat_to_matrix(q)
+    assert isinstance(m, torch.Tensor) and m.dtype == torch.float64
+    torch.testing.assert_close(m, rot.quat_to_matrix(torch.from_numpy(q)))
+    torch.testing.assert_close(rot.quat_mul(q, q), rot.quat_mul(torch.from_numpy(q), torch.from_numpy(q)))
+    ones = torch.ones(5, 3, dtype=torch.float64)
+    torch.testing.assert_close(rot.quat_rotate(q, np.ones((5, 3))), rot.quat_rotate(torch.from_numpy(q), ones))
+    torch.testing.assert_close(rot.matrix_to_quat(m.numpy()), rot.quat_canonical(torch.from_numpy(q)))
+    torch.testing.assert_close(rot.quat_to_euler(q[:, None].repeat(2, 1), "ZYX"),
+                               rot.quat_to_euler(torch.from_numpy(q)[:, None].repeat(1, 2, 1), "ZYX"))
+
+
+def test_axis_angle_zero_axis():
+    with pytest.raises(ValueError, match="zero length"):
+        rot.axis_angle_to_quat(torch.zeros(3), torch.tensor(0.5))
+    with pytest.raises(ValueError, match="NaN or inf"):
+        rot.axis_angle_to_quat(torch.tensor([float("nan"), 0.0, 1.0]), torch.tensor(0.5))
+    # a zero axis with a zero angle is the identity (no direction needed), next to a normal one
+    q = rot.axis_angle_to_quat(np.array([[0.0, 0.0, 0.0], [0.0, 2.0, 0.0]]), np.array([0.0, np.pi]))
+    torch.testing.assert_close(q, torch.tensor([[1.0, 0, 0, 0], [np.cos(np.pi / 2), 0, 1, 0]], dtype=torch.float64))
+    assert torch.isfinite(q).all()
+
+
+def test_matrix_to_quat_refuses_a_reflection():
+    reflect = torch.diag(torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64))
+    with pytest.raises(ValueError, match="determinant -1, not 1: not a rotation"):
+        rot.matrix_to_quat(torch.stack([torch.eye(3, dtype=torch.float64), reflect]))
+    with pytest.raises(ValueError, match="determinant nan"):
+        rot.matrix_to_quat(torch.full((3, 3), float("nan")))
+    with pytest.raises(ValueError, match="determinant 8"):
+        rot.matrix_to_quat(2 * torch.eye(3))

@@ -263,3 +263,20 @@ def test_positions_match_fk_and_float64(sk):
     ref, glob = forward_kinematics(q, torch.from_numpy(m.root_positions), torch.from_numpy(sk.offsets), sk.parents)
     np.testing.assert_allclose(pos, ref.numpy(), atol=1e-12)
     np.testing.assert_allclose(m.global_rotations(), glob.numpy(), atol=1e-12)
+
+
+def test_fk_refuses_invalid_rotations_and_takes_numpy():
+    sk = Skeleton.canonical()
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (3, sk.num_joints, 1))
+    root, off = np.zeros((3, 3)), sk.offsets
+    pos, _ = forward_kinematics(q, root, off, sk.parents)  # numpy in, tensors out
+    assert isinstance(pos, torch.Tensor)
+    torch.testing.assert_close(pos, forward_kinematics(torch.from_numpy(q), torch.from_numpy(root),
+                                                       torch.from_numpy(off), sk.parents)[0])
+    thigh = np.linalg.norm(pos[0, 2].numpy() - pos[0, 1].numpy())
+    assert thigh == pytest.approx(0.415)
+    for bad, words in ((2 * q, "norm 2;"), (0 * q, "norm 0"), (np.where(q == 1, np.nan, q), "norm nan")):
+        with pytest.raises(ValueError, match=f"forward_kinematics rotations: the quaternion at index .* {words}"):
+            forward_kinematics(bad, root, off, sk.parents)
+    with pytest.raises(ValueError, match="norm 2"):
+        sk.fk(2 * q, root)
