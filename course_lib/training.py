@@ -7,8 +7,10 @@ The trainer knows nothing about any model (minGPT's trainer): it only calls
 entry (scalars or small vectors such as a KL per latent dimension) is logged in
 a :class:`History`.  Checkpoints are ``state_dict`` + JSON config + course_lib
 version, hashed with sha256 and listed in ``checkpoints/MANIFEST.json`` together
-with the one command that reproduces them; they are always loaded with
-``torch.load(..., weights_only=True)``.
+with the one command that reproduces them, and in a sidecar ``<file>.sha256`` beside the
+file (see `course_lib.checksums`); they are always loaded with
+``torch.load(..., weights_only=True)``, and only after their sha256 matched the manifest's
+entry or, for a file the manifest does not list (a copy elsewhere), its sidecar.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import numpy as np
 import torch
 
 from . import __version__
+from .checksums import is_sha256, read_sidecar, sha256_file, sidecar_path, write_sidecar
 
 __all__ = [
     "History",
@@ -264,15 +267,6 @@ def _progress(total, progress, desc):
 # ----------------------------------------------------------------------------- checkpoints
 
 
-def sha256_file(path: str | os.PathLike) -> str:
-    """Hex sha256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _manifest_path(path: Path, manifest: str | os.PathLike | None) -> Path:
     return Path(manifest) if manifest is not None else path.parent / "MANIFEST.json"
 
@@ -344,6 +338,7 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save(payload, path)
+    write_sidecar(path)
     mpath = _manifest_path(path, manifest)
     entry = {
         "file": os.path.relpath(path.resolve(), mpath.resolve().parent).replace(os.sep, "/"),
@@ -370,24 +365,57 @@ def _config_from_dict(config_cls, values: dict):
     return config_cls(**kwargs)
 
 
+def _read_manifest(mpath: Path) -> dict:
+    """MANIFEST.json -> {name: entry}; a malformed file is a ValueError that says so."""
+    try:
+        table = json.loads(mpath.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ValueError(f"{mpath} is not valid JSON ({err}); restore it (git checkout -- {mpath}) or rebuild "
+                         "its checkpoints with the commands it listed") from None
+    if not isinstance(table, dict) or not all(isinstance(e, dict) for e in table.values()):
+        raise ValueError(f"{mpath} is malformed: expected an object of checkpoint entries; restore it "
+                         f"(git checkout -- {mpath})")
+    return table
+
+
+def _expected_sha256(path: Path, mpath: Path) -> tuple[str, str]:
+    """-> (sha256 the file must have, what to run if it does not): the manifest's entry, else the sidecar."""
+    name = _entry_name(path, mpath)
+    entry = _read_manifest(mpath).get(name) if mpath.exists() else None
+    if entry is not None:
+        command = entry.get("command", "the command that made it")
+        if not is_sha256(entry.get("sha256")):
+            raise ValueError(f"{mpath}: the entry {name!r} has no valid sha256, so {path} cannot be verified; "
+                             f"rebuild it with: {command}")
+        return entry["sha256"], f"Rebuild it with: {command}"
+    side = read_sidecar(path)
+    if side is not None:
+        return side, f"Restore the file together with its sidecar {sidecar_path(path).name}, or rebuild it."
+    raise ValueError(
+        f"cannot verify {path}: {mpath} {'has no entry ' + repr(name) if mpath.exists() else 'does not exist'} and "
+        f"there is no sidecar {sidecar_path(path)}. Copy the checkpoint with its .sha256 sidecar (save_checkpoint "
+        "writes one). If you trust this file, record its hash with course_lib.checksums.write_sidecar(path), "
+        "or load it with verify=False.")
+
+
 def load_checkpoint(path: str | os.PathLike, model_cls, config_cls, *, manifest: str | os.PathLike | None = None,
                     verify: bool = True) -> torch.nn.Module:
     """Rebuild ``model_cls(config_cls(**config))`` from ``path`` and load its weights (eval mode).
 
-    The file is loaded with ``torch.load(weights_only=True)``.  If the manifest (default: next to
-    the file) lists it, its sha256 must match, else a ValueError names the command that rebuilds it.
+    Before loading (``torch.load(weights_only=True)``) the file's sha256 must match the manifest's
+    entry (default manifest: MANIFEST.json next to the file) or, where the manifest does not list
+    it, its sidecar ``<path>.sha256``; a mismatch, a file known to neither, or an entry without a
+    sha256 raise ValueError saying how to proceed.  ``verify=False`` skips the check.
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"checkpoint {path} not found")
-    mpath = _manifest_path(path, manifest)
-    if verify and mpath.exists():
-        entry = json.loads(mpath.read_text()).get(_entry_name(path, mpath))
-        if entry is not None:
-            actual = sha256_file(path)
-            if actual != entry["sha256"]:
-                raise ValueError(f"sha256 mismatch for {path}: manifest {entry['sha256'][:12]}..., file "
-                                 f"{actual[:12]}...; the file is corrupt or stale. Rebuild it with: {entry['command']}")
+    if verify:
+        expected, fix = _expected_sha256(path, _manifest_path(path, manifest))
+        actual = sha256_file(path)
+        if actual != expected:
+            raise ValueError(f"sha256 mismatch for {path}: expected {expected[:12]}..., file {actual[:12]}...; "
+                             f"the file is corrupt or stale. {fix}")
     payload = torch.load(path, map_location="cpu", weights_only=True)
     if payload.get("config_class") not in (None, config_cls.__name__):
         raise TypeError(f"{path} holds a {payload['config_class']}, not a {config_cls.__name__}")

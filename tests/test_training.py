@@ -1,12 +1,14 @@
 """Tests of course_lib.training: the fit loop, seeding, clipping, checkpoints and the manifest."""
 
 import json
+import shutil
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
 import torch
 
+from course_lib.checksums import write_sidecar
 from course_lib.training import History, fit, load_checkpoint, save_checkpoint, seed_everything, sha256_file
 
 
@@ -196,3 +198,75 @@ def test_history_plot_and_epoch_means():
     assert len(ax.lines) == 1
     with pytest.raises(KeyError, match="never logged"):
         h.plot(keys=["nope"])
+
+
+def _flip_a_byte(path):
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_every_load_verifies_a_sha256(tmp_path):
+    """Manifest entry, else the sidecar save_checkpoint wrote; neither -> refuse, saying how to proceed."""
+    model, config = TinyRegressor(TinyConfig()), TinyConfig()
+    path = tmp_path / "ckpt" / "a.pt"
+    save_checkpoint(model, config, path, command="make a")
+    assert (tmp_path / "ckpt" / "a.pt.sha256").read_text() == f"{sha256_file(path)}  a.pt\n"
+    # a copy elsewhere with its sidecar (no manifest there) loads; corrupted, it is refused
+    (tmp_path / "copy").mkdir()
+    copy = tmp_path / "copy" / "a.pt"
+    shutil.copy(path, copy)
+    shutil.copy(path.with_name("a.pt.sha256"), copy.with_name("a.pt.sha256"))
+    assert isinstance(load_checkpoint(copy, TinyRegressor, TinyConfig), TinyRegressor)
+    _flip_a_byte(copy)
+    with pytest.raises(ValueError, match="sha256 mismatch .* sidecar a.pt.sha256"):
+        load_checkpoint(copy, TinyRegressor, TinyConfig)
+    # a renamed copy: the manifest does not list it and it has no sidecar
+    renamed = path.with_name("renamed.pt")
+    shutil.copy(path, renamed)
+    with pytest.raises(ValueError, match="cannot verify .*renamed.pt: .*MANIFEST.json has no entry 'renamed' and "
+                                         "there is no sidecar .*write_sidecar.*verify=False"):
+        load_checkpoint(renamed, TinyRegressor, TinyConfig)
+    lone = tmp_path / "lone.pt"
+    shutil.copy(path, lone)
+    with pytest.raises(ValueError, match="MANIFEST.json does not exist and there is no sidecar"):
+        load_checkpoint(lone, TinyRegressor, TinyConfig)
+    assert isinstance(load_checkpoint(lone, TinyRegressor, TinyConfig, verify=False), TinyRegressor)
+    write_sidecar(lone)
+    assert isinstance(load_checkpoint(lone, TinyRegressor, TinyConfig), TinyRegressor)
+    lone.with_name("lone.pt.sha256").write_text("not a hash\n")
+    with pytest.raises(ValueError, match="is not a sha256 sidecar"):
+        load_checkpoint(lone, TinyRegressor, TinyConfig)
+
+
+def test_bad_manifests_are_clear_errors(tmp_path):
+    model, config = TinyRegressor(TinyConfig()), TinyConfig()
+    path = tmp_path / "a.pt"
+    save_checkpoint(model, config, path, command="make a")
+    manifest = tmp_path / "MANIFEST.json"
+    table = json.loads(manifest.read_text())
+    del table["a"]["sha256"]
+    manifest.write_text(json.dumps(table))
+    with pytest.raises(ValueError, match="entry 'a' has no valid sha256.*rebuild it with: make a"):
+        load_checkpoint(path, TinyRegressor, TinyConfig)
+    manifest.write_text('{"a": {"sha256": ')
+    with pytest.raises(ValueError, match="MANIFEST.json is not valid JSON .*git checkout"):
+        load_checkpoint(path, TinyRegressor, TinyConfig)
+    manifest.write_text("[1, 2]")
+    with pytest.raises(ValueError, match="MANIFEST.json is malformed"):
+        load_checkpoint(path, TinyRegressor, TinyConfig)
+
+
+def test_load_classifier_with_a_path_verifies_it(tmp_path, repo_root):
+    from course_lib.evaluation.classifiers import load_classifier
+
+    shipped = repo_root / "checkpoints" / "action_classifier.pt"
+    copy = tmp_path / "action_classifier.pt"
+    shutil.copy(shipped, copy)
+    with pytest.raises(ValueError, match="cannot verify"):
+        load_classifier("action", path=copy)
+    copy.with_name("action_classifier.pt.sha256").write_text(f"{sha256_file(shipped)}  action_classifier.pt\n")
+    load_classifier("action", path=copy)
+    _flip_a_byte(copy)
+    with pytest.raises(ValueError, match="sha256 mismatch"):
+        load_classifier("action", path=copy)
