@@ -10,6 +10,7 @@ are generated at 120 fps and stored at --fps.  Writes <out> and a data card besi
 """
 
 import argparse
+import math
 import shlex
 import sys
 import time
@@ -31,8 +32,11 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     if args.out.exists() and not args.force:
         ap.error(f"{args.out} exists; pass --force to replace it")
-    if args.clips < 1 or args.fps <= 0 or args.duration <= 0:
-        ap.error("--clips, --fps and --duration must be positive")
+    if args.clips < 1 or not 0 < args.fps < math.inf or not 0 < args.duration < math.inf:
+        ap.error(f"--clips, --fps and --duration must be positive finite numbers, got {args.clips}, {args.fps}, "
+                 f"{args.duration}")
+    if args.subjects is not None and args.subjects < 1:
+        ap.error(f"--subjects must be at least 1 (or left out for the default), got {args.subjects}")
     t0 = time.time()
     motions = D.generate_locomotion_set(args.clips, args.seed, args.fps, args.duration, args.subjects,
                                       workers=args.workers, progress=True)

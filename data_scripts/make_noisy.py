@@ -11,6 +11,7 @@ returns matching (noisy, clean) lists.  The same arguments give the same bytes.
 """
 
 import argparse
+import math
 import os
 import shlex
 import sys
@@ -30,12 +31,22 @@ def main(argv=None) -> None:
     ap.add_argument("--force", action="store_true", help="replace an existing output file")
     args = ap.parse_args(argv)
     out = args.out or args.input.with_name(args.input.stem + "_noisy.npz")
+    if out.resolve() == args.input.resolve() or (out.exists() and args.input.exists() and out.samefile(args.input)):
+        ap.error(f"--out {out} is the --input file: the noisy set must not replace the clean set it is made "
+                 "from (--force does not change this); choose another --out")
     if out.exists() and not args.force:
         ap.error(f"{out} exists; pass --force to replace it")
     if not args.input.exists():
         ap.error(f"{args.input} does not exist; make it first (make_locomotion.py or make_actions.py)")
+    if args.clips is not None and args.clips < 1:
+        ap.error(f"--clips must be at least 1 (or left out for all clips), got {args.clips}")
+    if args.fps is not None and not 0 < args.fps < math.inf:
+        ap.error(f"--fps must be a positive finite number, got {args.fps}")
     t0 = time.time()
-    clean = D.resample_clips(D.load_motions(args.input)[:args.clips], args.fps)
+    motions = D.load_motions(args.input)
+    if args.clips is not None and args.clips > len(motions):
+        ap.error(f"--clips {args.clips}: {args.input} holds only {len(motions)} clips")
+    clean = D.resample_clips(motions[:args.clips], args.fps)
     noisy = D.noisy_copies(clean, args.seed, progress=True)
     params = dict(kind="noisy", seed=args.seed, clips=len(noisy), fps=args.fps, schema_version=D.SCHEMA_VERSION,
                   clean_file=os.path.relpath(args.input.resolve(), out.resolve().parent),

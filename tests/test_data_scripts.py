@@ -108,3 +108,35 @@ def test_noisy_cli_keeps_clean_beside(tmp_path):
     D.save_motions(ref[:1], clean, overwrite=True)  # the clean file changed: pairs refuse
     with pytest.raises(ValueError, match="changed since"):
         D.load_noisy_pairs("loco_noisy", data_dir=tmp_path)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--subjects", "0"], "--subjects must be at least 1"),
+    (["--subjects", "-2"], "--subjects must be at least 1"),
+    (["--duration", "nan"], "must be positive finite numbers"),
+    (["--duration", "inf"], "must be positive finite numbers"),
+    (["--fps", "nan"], "must be positive finite numbers"),
+])
+def test_locomotion_cli_refuses_bad_numbers(args, words, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        script("make_locomotion").main(["--clips", "1", "--out", str(tmp_path / "l.npz"), *args])
+    assert e.value.code == 2 and words in capsys.readouterr().err
+    assert not (tmp_path / "l.npz").exists()
+
+
+def test_noisy_cli_cannot_destroy_the_clean_set(tmp_path, capsys):
+    clean = tmp_path / "clean.npz"
+    script("make_locomotion").main(["--clips", "2", "--subjects", "1", "--duration", "1", "--out", str(clean),
+                                    "--workers", "1"])
+    before = sha(clean)
+    cases = [(["--out", str(clean), "--force"], "is the --input file"),
+             (["--out", str(tmp_path / "." / "clean.npz"), "--force"], "is the --input file"),
+             (["--clips", "-1"], "--clips must be at least 1"), (["--clips", "0"], "--clips must be at least 1"),
+             (["--clips", "3"], "holds only 2 clips"), (["--fps", "nan"], "--fps must be a positive finite")]
+    (tmp_path / "link.npz").symlink_to(clean)
+    cases.append((["--out", str(tmp_path / "link.npz"), "--force"], "is the --input file"))
+    for args, words in cases:
+        with pytest.raises(SystemExit) as e:
+            script("make_noisy").main(["--input", str(clean), *args])
+        assert e.value.code == 2 and words in capsys.readouterr().err, args
+    assert sha(clean) == before and sorted(p.name for p in tmp_path.glob("*.npz")) == ["clean.npz", "link.npz"]
