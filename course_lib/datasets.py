@@ -160,10 +160,15 @@ def _open(path) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path} does not exist (make it with data_scripts/, see README)")
+    if path.is_file() and path.stat().st_size == 0:
+        raise ValueError(f"{path} is empty (0 bytes), not a .npz motion file; remake it with data_scripts/")
     try:
-        with np.load(path, allow_pickle=False) as z:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise ValueError("it holds a single .npy array, not the .npz archive save_motions writes")
+        with loaded as z:
             data = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError) as e:
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as e:
         raise ValueError(f"{path} is not a readable .npz motion file: {e}") from None
     if "schema_version" not in data:
         raise ValueError(f"{path} is not a course_lib motion file (no schema_version)")
@@ -643,6 +648,9 @@ def load_dataset(name: str, mode: str | None = None, data_dir=None, seed: int = 
     if name not in DATASETS:
         raise ValueError(f"load_dataset: unknown dataset {name!r}; choose one of {', '.join(DATASETS)}")
     mode = mode or course_mode()
+    if mode not in GENERATED_SIZES[name.removesuffix("_noisy")]:
+        raise ValueError(f"load_dataset: unknown mode {mode!r}; choose one of "
+                         f"{', '.join(GENERATED_SIZES[name.removesuffix('_noisy')])}")
     path = Path(data_dir or DATA_DIR) / f"{name}.npz"
     if mode != "ci" and path.exists():
         return resample_clips([m for m in load_motions(path)], fps)

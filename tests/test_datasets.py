@@ -89,6 +89,19 @@ def test_load_errors(tmp_path):
         D.save_motions([], tmp_path / "empty.npz")
 
 
+def test_load_errors_name_the_path_and_the_problem(tmp_path):
+    (tmp_path / "zero.npz").write_bytes(b"")
+    with pytest.raises(ValueError, match=f"{tmp_path / 'zero.npz'} is empty \\(0 bytes\\)"):
+        D.load_motions(tmp_path / "zero.npz")
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    with pytest.raises(ValueError, match=f"{tmp_path / 'array.npy'} is not a readable .npz motion file: it holds "
+                                         "a single .npy array"):
+        D.load_motions(tmp_path / "array.npy")
+    for name in ("locomotion", "actions_noisy"):
+        with pytest.raises(ValueError, match="load_dataset: unknown mode 'fast'; choose one of ci, class, full"):
+            D.load_dataset(name, mode="fast", data_dir=tmp_path)
+
+
 def test_split_by_subject():
     ms = []
     for s in range(20):
