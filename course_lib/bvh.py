@@ -46,11 +46,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from course_lib.checksums import read_sidecar, sha256_file, write_sidecar
 from course_lib.motion import Motion
 from course_lib.rotations import euler_to_quat, quat_conjugate, quat_mul, quat_rotate, quat_to_euler
 from course_lib.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, Skeleton, forward_kinematics
 
 CMU_SCALE = 0.056444  # CMU BVH length unit -> metres
+SITE_DIR = Path(__file__).resolve().parents[1] / "site"  # the course site `make course` builds, beside its lessons
 CMU_SAMPLE = Path("shared") / "data" / "cmu_07_01_walk.bvh"  # the course's real clip, beside the repository
 
 
@@ -515,6 +517,31 @@ def write_bvh(motion: Motion, path: str | os.PathLike, order: str | list[str] = 
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return path
+
+
+def write_site_sample(motion: Motion, name: str, site: str | os.PathLike | None = None, **options) -> Path:
+    """Write a lesson's sample motion to ``<site>/<name>.bvh`` (default: the repository's site/) and return it.
+
+    For students to open in Blender (File > Import > Motion Capture (.bvh)).  Creates the folder;
+    `options` go to `write_bvh`.  A sidecar ``<name>.bvh.sha256`` records what was written, and
+    an existing ``<name>.bvh`` is replaced only when its sidecar shows that this function wrote it
+    and nobody changed it since: any other file of that name raises FileExistsError.
+    name: letters, digits, '_', '-', '.' (no folders).
+    """
+    name = name.removesuffix(".bvh")
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", name):
+        raise ValueError(f"write_site_sample: name {name!r} must be letters, digits, '_', '-', '.' (no folders)")
+    folder = Path(site) if site is not None else SITE_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.bvh"
+    if path.exists() or path.is_symlink():
+        ours = path.is_file() and not path.is_symlink() and read_sidecar(path) == sha256_file(path)
+        if not ours:
+            raise FileExistsError(f"write_site_sample: {path} exists and is not a sample this function wrote "
+                                  "(or it was changed since); move it away or choose another name")
+    write_bvh(motion, path, overwrite=True, **options)
+    write_sidecar(path)
     return path
 
 

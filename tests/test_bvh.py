@@ -23,6 +23,7 @@ from course_lib.bvh import (
     read_bvh,
     retarget_names,
     write_bvh,
+    write_site_sample,
 )
 from course_lib.motion import Motion
 from course_lib.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, Skeleton
@@ -482,3 +483,23 @@ def test_byte_order_mark_and_zero_frames(tmp_path):
     again = read_bvh(write_bvh(empty, tmp_path / "empty.bvh"))
     assert len(again) == 0 and again.skeleton.names == ("Hips", "Chest")
     assert parse_bvh(BASE)[:1].duration == 0.0 and parse_bvh(BASE).duration == pytest.approx(1 / 30)
+
+
+def test_site_sample_creates_the_folder_and_replaces_only_its_own_files(tmp_path):
+    m = parse_bvh(BASE)
+    site = tmp_path / "site"
+    path = write_site_sample(m, "00_walk", site=site)
+    assert path == site / "00_walk.bvh" and np.allclose(read_bvh(path).positions(), m.positions())
+    assert (site / "00_walk.bvh.sha256").is_file()
+    again = write_site_sample(m[:1], "00_walk.bvh", site=site)  # its own earlier sample: replaced
+    assert again == path and len(read_bvh(path)) == 1
+    path.write_text(path.read_text().replace("Frames: 1", "Frames: 1 "))  # edited by hand since
+    with pytest.raises(FileExistsError, match="not a sample this function wrote"):
+        write_site_sample(m, "00_walk", site=site)
+    (site / "mine.bvh").write_text("a student's own file")
+    with pytest.raises(FileExistsError, match="mine.bvh exists"):
+        write_site_sample(m, "mine", site=site)
+    assert (site / "mine.bvh").read_text() == "a student's own file"
+    for bad in ("../up", "a/b", "", " x"):
+        with pytest.raises(ValueError, match="must be letters, digits"):
+            write_site_sample(m, bad, site=site)
