@@ -28,7 +28,7 @@ from course_lib.evaluation.metrics import (
     root_relative,
     speed_error,
 )
-from course_lib.evaluation.tables import ResultsTable, table
+from course_lib.evaluation.tables import ResultsTable, mean_sd, table
 
 _LAZY = {
     "classifiers": ("ClassifierConfig", "MotionClassifier", "accuracy", "load_classifier", "motions_to_batch"),
@@ -48,8 +48,8 @@ def __dir__():
 
 
 __all__ = [
-    "ClassifierConfig", "MotionClassifier", "c2st", "ResultsTable", "accuracy", "apd", "bone_length_violation",
+    "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation", "c2st",
     "classifier_features", "facing_yaw", "fid", "foot_skate", "frechet_distance", "ground_penetration",
-    "heading_error", "inception_score", "jitter", "load_classifier", "motions_to_batch", "npss", "path_distance",
-    "pose_error", "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
+    "heading_error", "inception_score", "jitter", "load_classifier", "mean_sd", "motions_to_batch", "npss",
+    "path_distance", "pose_error", "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
 ]

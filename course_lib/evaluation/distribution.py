@@ -1,4 +1,4 @@
-"""Distribution metrics: FID and Inception Score (Ghorbani et al. 2020, eq. 27-29) and a two-sample test.
+"""Distribution metrics: FID and Inception Score (Ghorbani et al. 2020, eq. 27-29) and the classifier two-sample test.
 
 FID and IS compare *sets* of motions through a pretrained motion classifier
 (`course_lib.evaluation.classifiers`, Ghorbani's Table 1 Conv1D network): FID

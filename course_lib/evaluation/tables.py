@@ -18,7 +18,7 @@ import html
 import math
 from collections.abc import Mapping, Sequence
 
-__all__ = ["ResultsTable", "table"]
+__all__ = ["ResultsTable", "mean_sd", "table"]
 
 _MISSING = "\u2014"
 
@@ -30,6 +30,15 @@ def _fmt(value, digits: int) -> str:
     if isinstance(value, str):
         return value
     return f"{float(value):.{digits}g}"
+
+
+def mean_sd(mean: float, sd: float, digits: int = 3) -> str:
+    """'mean +- sd' for a table cell, both with ``digits`` significant digits of the mean's size:
+    mean_sd(2512.3, 140.7) -> '2512 ± 141', mean_sd(0.6543, 0.0121) -> '0.654 ± 0.012'."""
+    if not (math.isfinite(mean) and math.isfinite(sd)):
+        return f"{mean} ± {sd}"
+    decimals = max(0, digits - 1 - int(math.floor(math.log10(abs(mean)))) if mean else digits - 1)
+    return f"{mean:.{decimals}f} ± {sd:.{decimals}f}"
 
 
 class ResultsTable:

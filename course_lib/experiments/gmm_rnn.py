@@ -11,7 +11,7 @@ Models: the GMM-RNN (sec. 4.1), GAN1 (refiner without contact awareness) and GAN
 refiner, sec. 4.3), each refiner trained for three seeds.  Evaluation: for every held-out clip the RNN
 continues its first two frames for 4 s; GAN1/GAN2 refine that motion; "GAN2 + contacts" adds the
 contact handling (models/contact_cleanup.py: the predicted contacts enforced on the root).  Every row
-gets foot skate, jitter, FID, IS and the two-sample accuracy against the held-out mocap.  Long generation:
+gets foot skate, jitter, FID, IS and the C2ST accuracy against the held-out mocap.  Long generation:
 100 motions of 20 s from one start frame.
 """
 
