@@ -192,7 +192,8 @@ def fit(model: torch.nn.Module, data, *, steps: int | None = None, epochs: int |
         lr: float = 1e-3, optimizer: str | Callable = "adam", weight_decay: float = 0.0,
         grad_clip: float | None = None, lr_schedule: Callable[[int], float] | None = None,
         steps_per_epoch: int | None = None, callback: Callable[[StepInfo], bool | None] | None = None,
-        progress: bool = True, seed: int | None = None, desc: str = "fit") -> History:
+        progress: bool = True, seed: int | None = None, desc: str = "fit",
+        optimizer_state: dict | None = None) -> History:
     """Minimise ``model.loss(batch)["loss"]`` over ``data``; return the :class:`History`.
 
     data: a DataLoader / re-iterable of batches (one pass = one epoch), a one-shot iterator,
@@ -200,6 +201,9 @@ def fit(model: torch.nn.Module, data, *, steps: int | None = None, epochs: int |
     ``steps`` optimiser steps or ``epochs`` epochs, whichever comes first (give at least one).
     lr_schedule: epoch -> factor multiplying ``lr`` (epochs counted from 0).
     grad_clip: max global L2 norm of the gradients (the pre-clip norm is logged as 'grad_norm').
+    optimizer_state: an ``optimizer.state_dict()`` to continue from (a run resumed or forked from the
+    state a callback kept: with the model's weights, the data's position and torch's RNG state restored,
+    it continues exactly).
     """
     if steps is None and epochs is None:
         raise ValueError("fit needs steps= or epochs= (or both; it stops at whichever comes first)")
@@ -211,6 +215,8 @@ def fit(model: torch.nn.Module, data, *, steps: int | None = None, epochs: int |
     if not params:
         raise ValueError("model has no trainable parameters")
     opt = make_optimizer(params, optimizer, lr, weight_decay)
+    if optimizer_state is not None:
+        opt.load_state_dict(optimizer_state)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lr_schedule) if lr_schedule is not None else None
     history, step, was_training, t0 = History(), 0, model.training, time.perf_counter()
     total = steps if steps is not None else (epochs * steps_per_epoch if steps_per_epoch else None)

@@ -1,5 +1,6 @@
 """Hierarchical VRNN (Ghorbani et al. 2020), its loss pieces, baselines and lesson-05 evaluation helpers."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -268,3 +269,56 @@ def test_reproduce_registers_hvrnn():
     from course_lib.reproduce import EXPERIMENTS
 
     assert "hvrnn" in EXPERIMENTS
+
+
+def test_nc_forked_from_the_proposed_run_equals_nc_trained_from_scratch():
+    """NC is the Proposed recipe with lambda_CL = 0, and lambda_CL is 0 until cl_start: the reproduction
+    continues NC from the Proposed run's state at cl_start; that must be exact."""
+    from course_lib.experiments import hvrnn as H
+
+    torch.set_num_threads(1)
+    specs = H.model_specs(scale=0.04)
+    data = H.load_data("ci")
+    classifiers = H.train_loss_classifiers(data["train"], 3)
+    proposed, nc = specs["hvrnn_proposed"], specs["hvrnn_nc"]
+    assert proposed.config == dataclasses.replace(nc.config, lambda_cl=proposed.config.lambda_cl)
+    _, hist = H.train_model(proposed, data["train"], classifiers, keep_at=proposed.config.cl_start)
+    forked, rest = H.continue_training(nc, hist.kept, data["train"])
+    scratch, _ = H.train_model(nc, data["train"], classifiers)
+    assert rest.num_steps == nc.steps - proposed.config.cl_start > 0
+    for (name, a), b in zip(forked.state_dict().items(), scratch.state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b, rtol=0, atol=0, msg=name)
+
+
+def test_fixed_dofs_of_the_data_are_set_in_every_generator_output():
+    from course_lib.datasets import FixedDofs
+    from course_lib.experiments import hvrnn as H
+
+    data = H.load_data("ci")
+    fixed = FixedDofs.detect(data["train"]["x"])
+    assert len(fixed) == 28  # knees', elbows', toes' off-axis components; shoulders and hands
+    for model in (HierarchicalVrnn(HvrnnConfig.cpu()), AttributeRnn(AttributeRnnConfig.cpu(kind="erd"))):
+        model.set_stats(data["train"]["x"])
+        x = H.generate(model, 1, 12, seed=0)["x"]  # untrained: every output channel moves
+        const = torch.from_numpy(fixed.values[fixed.mask]).float().expand(8, 12, -1)
+        torch.testing.assert_close(x[..., fixed.mask], const, rtol=0, atol=1e-6)  # (renormalised quaternions)
+        assert x[..., ~fixed.mask].std(1).mean() > 0
+
+
+def test_recipe_sweep_tool_runs_one_variant(tmp_path):
+    """tools/hvrnn_sweep.py (the search behind the shipped training length): a few steps, every number."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "hvrnn_sweep.py"
+    spec = importlib.util.spec_from_file_location("hvrnn_sweep", path)
+    sweep = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sweep)
+    out = tmp_path / "results.json"
+    assert sweep.main(["--out", str(out), "--only", "nl_1200", "--smoke"]) == 0
+    res = json.loads(out.read_text())["results"]["nl_1200"]
+    assert res["base"] == "hvrnn_nl" and res["steps"] == 4
+    assert res["reconstruction_FID"] >= 0 and res["FID"] >= 0 and 1 <= res["IS"] <= 8 and 0 <= res["C2ST"] <= 1
+    with pytest.raises(SystemExit):  # refuses to overwrite a results file
+        sweep.main(["--out", str(out), "--only", "nl_1200", "--smoke"])
