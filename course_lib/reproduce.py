@@ -1,246 +1,26 @@
 """Reproduce a lesson's results from scratch, or re-evaluate them from the shipped checkpoints.
 
-    python -m course_lib.reproduce vae_lstm              # data, train every model, tables -> JSON
-    python -m course_lib.reproduce vae_lstm --eval-only  # tables from checkpoints/ only
-    python -m course_lib.reproduce gmm_rnn [--eval-only]  # lesson 03, course_lib/experiments/gmm_rnn.py
+    python -m course_lib.reproduce vae_lstm [--eval-only]  # lesson 02, course_lib/experiments/vae_lstm.py
+    python -m course_lib.reproduce gmm_rnn [--eval-only]   # lesson 03, course_lib/experiments/gmm_rnn.py
+    python -m course_lib.reproduce hvrnn [--eval-only]     # lesson 05, course_lib/experiments/hvrnn.py
 
-Each lesson registers one entry in ``EXPERIMENTS`` (name -> (train_fn, eval_fn)); other lessons
-add theirs the same way.  Nothing runs at import time.
-
-Lesson 02 (Habibie et al. 2017): the VAE-LSTM and the ERD, LSTM-3LR and cRBM (CD-1, CD-15)
-baselines on synthetic locomotion at 60 fps, 240-frame clips, split by subject (held-out test
-subjects, >= 100 test clips), fixed seed.  Table 1 is the motion prediction error (world space;
-baselines get 60 initial frames and predict their own control, the VAE-LSTM gets 4 initial
-frames or none, plus the ground-truth control); Table 2 the pose error (root-relative; everyone
-gets the ground-truth control and 4 initial frames).
+Without --eval-only: data, train every model of the lesson (or those named in --only), save the
+checkpoints and record the results in checkpoints/MANIFEST.json; with it: the results from the
+shipped checkpoints.  Each lesson registers one entry in ``EXPERIMENTS`` (name -> (train_fn,
+eval_fn)), imported only when run.  Nothing runs at import time.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
-import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from course_lib.datasets import WindowDataset, load_motions, save_motions
-from course_lib.motion import Motion
-from course_lib.representations import decode_positions, root_start
-
 ROOT = Path(__file__).resolve().parent.parent
 CHECKPOINTS = ROOT / "checkpoints"
-DATA_FILE = ROOT / "data" / "habibie_locomotion.npz"
-FRAMES = (70, 90, 120, 160, 210)  # Habibie Tables 1-2 columns (0-based frame indices here)
-
-# The paper's numbers (its own units), Tables 1 and 2.
-PAPER_TABLE1 = {"ERD": [0.66, 2.10, 6.13, 13.53, 19.49], "LSTM-3LR": [0.55, 3.18, 9.47, 14.14, 17.98],
-                "cRBM, CD-1": [1.41, 3.51, 7.96, 11.51, 15.77], "cRBM, CD-15": [1.41, 3.71, 8.28, 10.54, 15.79],
-                "VAE-LSTM": [1.45, 1.75, 2.20, 3.25, 4.12], "VAE-LSTM (prior sample)": [1.97, 2.37, 2.91, 3.97, 4.91]}
-PAPER_TABLE2 = {"ERD": [2.31, 2.62, 2.54, 2.99, 2.63], "LSTM-3LR": [2.11, 2.15, 2.36, 2.34, 2.17],
-                "cRBM, CD-1": [2.76, 2.81, 3.13, 2.82, 3.01], "cRBM, CD-15": [2.64, 2.71, 3.08, 2.85, 3.21],
-                "VAE-LSTM": [0.82, 0.85, 0.82, 0.83, 0.87], "VAE-LSTM (prior sample)": [1.23, 1.27, 1.24, 1.24, 1.29]}
-
-
-@dataclass
-class DataSpec:
-    """The lesson-02 data: synthetic locomotion clips, split by subject."""
-
-    n_clips: int = 400  # 4-s clips; 10 subjects of 40 clips each
-    n_subjects: int = 10
-    test_subjects: tuple = ("s00", "s05", "s09")  # held out: 120 test clips
-    seed: int = 2017
-    fps: float = 60.0
-    length: int = 240  # frames per clip (4 s), Habibie sec. 4.1
-    mirror: bool = True  # left-right mirrored training clips (augmentation)
-    extra: dict = field(default_factory=dict)
-
-
-def generate_clips(spec: DataSpec, progress: bool = True) -> list[Motion]:
-    """spec.n_clips locomotion clips at spec.fps.  A clip whose generation fails (the generator can
-    produce NaN for rare programs) is redrawn with the next seed, so the count is always met."""
-    from tqdm.auto import tqdm
-
-    from course_lib.datasets import _clip_seed, resample_clips
-    from course_lib.synthetic import generate_locomotion, make_subjects
-
-    subjects = make_subjects(spec.n_subjects, spec.seed)
-    clips, redrawn = [], 0
-    bar = {} if progress else dict(disable=True)  # an empty dict lets TQDM_DISABLE=1 apply
-    for i in tqdm(range(spec.n_clips), desc="clips", **bar):
-        for attempt in range(20):
-            try:
-                m = generate_locomotion(subjects[i % spec.n_subjects], None, duration=(spec.length + 1) / spec.fps,
-                                        seed=_clip_seed(spec.seed, i, attempt))
-                break
-            except ValueError:
-                redrawn += 1
-        else:
-            raise RuntimeError(f"clip {i}: the generator failed 20 times")
-        clips.append(resample_clips([m], spec.fps)[0])
-    if redrawn:
-        print(f"generate_clips: {redrawn} clip(s) redrawn after a generator failure", file=sys.stderr)
-    return clips
-
-
-def load_clips(spec: DataSpec, path: Path = DATA_FILE, progress: bool = True) -> list[Motion]:
-    """The cached clips at ``path`` if it exists, else generated (and cached)."""
-    if path.exists():
-        return load_motions(path)
-    clips = generate_clips(spec, progress)
-    save_motions(clips, path, overwrite=True)
-    return clips
-
-
-def datasets(spec: DataSpec, clips: list[Motion]) -> tuple[WindowDataset, WindowDataset]:
-    """-> (train, test) WindowDatasets of positions_control, 240 frames; test uses train's stats."""
-    test = [m for m in clips if m.subject in spec.test_subjects]
-    train = [m for m in clips if m.subject not in spec.test_subjects]
-    if not test or not train:
-        raise ValueError(f"split by subject left an empty split: {len(train)} train, {len(test)} test")
-    kw = dict(representation="positions_control", length=spec.length, fps=spec.fps)
-    train_ds = WindowDataset(train, **kw, mirror=spec.mirror)
-    return train_ds, WindowDataset(test, **kw, stats=train_ds.stats)
-
-
-# ----------------------------------------------------------------------------- lesson 02: models
-
-
-@dataclass
-class TrainSpec:
-    """How one lesson-02 model is trained: its class, config, steps and batch size."""
-
-    name: str  # checkpoint file stem in checkpoints/
-    label: str  # row name in the tables
-    steps: int
-    batch: int
-    lr: float
-
-
-def lesson02_models() -> dict[str, tuple]:
-    """name -> (model class, config, TrainSpec): the CPU-sized models of Tables 1-2."""
-    from course_lib.models.baselines import CRbm, CRbmConfig, Erd, ErdConfig, Lstm3lr, Lstm3lrConfig
-    from course_lib.models.vae_lstm import VaeLstm, VaeLstmConfig
-
-    return {
-        "vae_lstm": (VaeLstm, VaeLstmConfig.cpu(), TrainSpec("vae_lstm", "VAE-LSTM", 1000, 16, 1e-3)),
-        "erd": (Erd, ErdConfig.cpu(), TrainSpec("erd", "ERD", 500, 16, 1e-3)),
-        "lstm3lr": (Lstm3lr, Lstm3lrConfig.cpu(), TrainSpec("lstm3lr", "LSTM-3LR", 500, 16, 1e-3)),
-        "crbm_cd1": (CRbm, CRbmConfig.cpu(cd_k=1), TrainSpec("crbm_cd1", "cRBM, CD-1", 800, 16, 1e-3)),
-        "crbm_cd15": (CRbm, CRbmConfig.cpu(cd_k=15), TrainSpec("crbm_cd15", "cRBM, CD-15", 500, 16, 1e-3)),
-    }
-
-
-def train_one(name: str, train_ds: WindowDataset, seed: int, steps: int | None = None, progress: bool = True):
-    """Train lesson-02 model ``name`` from scratch -> (model, History)."""
-    from course_lib.training import fit, seed_everything
-
-    cls, config, spec = lesson02_models()[name]
-    gen = seed_everything(seed)
-    model = cls(config)
-    loader = torch.utils.data.DataLoader(train_ds, batch_size=spec.batch, shuffle=True, drop_last=True,
-                                         generator=gen)
-    history = fit(model, loader, steps=steps or spec.steps, lr=spec.lr, grad_clip=10.0, progress=progress,
-                  desc=name)
-    return model.eval(), history
-
-
-def load_model(name: str, checkpoints: Path = CHECKPOINTS):
-    """The shipped checkpoint of lesson-02 model ``name`` (eval mode)."""
-    from course_lib.training import load_checkpoint
-
-    cls, config, _ = lesson02_models()[name]
-    return load_checkpoint(checkpoints / f"{name}.pt", cls, type(config))
-
-
-# ----------------------------------------------------------------------------- lesson 02: evaluation
-
-
-def test_batch(test_ds: WindowDataset) -> tuple[torch.Tensor, list[tuple[float, float, float]]]:
-    """-> normalised test clips (N, T, 66) and each clip's start transform (x0, z0, yaw0)."""
-    x = torch.stack([test_ds[i]["x"] for i in range(len(test_ds))])
-    starts = [root_start(test_ds.clips[c][s:s + test_ds.length]) for c, s in test_ds.index]
-    return x, starts
-
-
-def to_world(features: torch.Tensor, ds: WindowDataset, starts, fps: float = 60.0) -> np.ndarray:
-    """Normalised features (N, T, 66) -> world joint positions (N, T, 21, 3) (control integrated from starts)."""
-    raw = ds.denormalize(features.detach().double()).numpy()
-    return np.stack([decode_positions(f, fps, s) for f, s in zip(raw, starts, strict=True)])
-
-
-def with_control(pred: torch.Tensor, control: torch.Tensor) -> torch.Tensor:
-    """pred (N, T, 66), control (N, T, 3) -> pred with its control dims replaced by the given control."""
-    return torch.cat((pred[..., :-3], control), -1)
-
-
-def lesson02_predictions(models: dict, x: torch.Tensor, seed: int = 0) -> dict[str, dict[str, torch.Tensor]]:
-    """models {name: model}, x (N, T, 66) -> {"table1"|"table2": {label: features (N, T, 66)}}.
-
-    Table 1: baselines from 60 initial frames, own control; VAE-LSTM from 4 frames / the prior with the
-    ground-truth control.  Table 2: everyone from 4 initial frames with the ground-truth control.
-    """
-    specs, control, T = lesson02_models(), x[..., -3:], x.shape[1]
-    gen = torch.Generator().manual_seed(seed)
-    t1, t2 = {}, {}
-    for name, model in models.items():
-        label = specs[name][2].label
-        if name == "vae_lstm":
-            t1[label] = t2[label] = with_control(model.predict(x[:, :4], control), control)
-            prior = with_control(model.generate(control, generator=gen), control)
-            t1[label + " (prior sample)"] = t2[label + " (prior sample)"] = prior
-            per_step = with_control(model.generate(control, generator=gen, per_step=True), control)
-            t1[label + " (prior, every step)"] = t2[label + " (prior, every step)"] = per_step
-        else:
-            kw = {"generator": gen} if name.startswith("crbm") else {}
-            t1[label] = model.predict(x[:, :60], T - 60, **kw)
-            t2[label] = model.predict(x[:, :4], T - 4, control=control, **kw)
-    return {"table1": t1, "table2": t2}
-
-
-def lesson02_tables(models: dict, test_ds: WindowDataset, seed: int = 0, frames=FRAMES) -> dict:
-    """-> {"table1": {label: {frame: m^2}}, "table2": ..., "curves": {label: pose error per frame},
-    "clips": N}: Habibie Tables 1-2 (motion / pose prediction error) and Figure 4 on the test clips."""
-    from course_lib.evaluation import pose_error, prediction_error
-
-    x, starts = test_batch(test_ds)
-    gt = to_world(x, test_ds, starts)
-    preds = lesson02_predictions(models, x, seed)
-    out = {"table1": {}, "table2": {}, "curves": {}, "clips": len(x)}
-    for label, feats in preds["table1"].items():
-        out["table1"][label] = prediction_error(to_world(feats, test_ds, starts), gt, frames)
-    for label, feats in preds["table2"].items():
-        curve = pose_error(to_world(feats, test_ds, starts), gt)
-        out["table2"][label] = {f: curve[f] for f in frames}
-        out["curves"][label] = [curve[f] for f in range(len(curve))]
-    return out
-
-
-def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_samples: int = 5, seed: int = 0) -> dict:
-    """Prior samples under one control, by Algorithm 1 (z_1 only) and with z_t drawn every step:
-    APD (m) of S samples per control, and the path error (m): the
-    mean distance of the root path integrated from the *model's own* control outputs to the
-    ground-truth path (with the given control the path would match by construction)."""
-    from course_lib.evaluation import apd, path_distance
-
-    x, starts = test_batch(test_ds)
-    x, starts = x[:n_controls], starts[:n_controls]
-    out = {"controls": len(x), "samples_per_control": n_samples}
-    for key, per_step in (("algorithm1", False), ("per_step_prior", True)):
-        gen = torch.Generator().manual_seed(seed)
-        samples, path_err = [], []
-        for i in range(len(x)):
-            ctrl = x[i:i + 1, :, -3:].expand(n_samples, -1, -1)
-            pred = model.generate(ctrl, generator=gen, per_step=per_step)  # (S, T, 66)
-            own = to_world(pred, test_ds, [starts[i]] * n_samples)  # root from the model's own control
-            samples.append(to_world(with_control(pred, ctrl), test_ds, [starts[i]] * n_samples))
-            gt_path = to_world(x[i:i + 1], test_ds, starts[i:i + 1])[0, :, 0]
-            path_err.append(path_distance(own, gt_path))
-        out[key] = {"apd_m": apd(np.stack(samples)), "path_error_m": float(np.mean(path_err))}
-    return out
 
 
 def rounded(d, digits: int = 6):
@@ -251,65 +31,6 @@ def rounded(d, digits: int = 6):
         return [rounded(v, digits) for v in d]
     return round(float(d), digits) if isinstance(d, (float, np.floating)) else d
 
-
-def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True,
-                  checkpoints: Path = CHECKPOINTS) -> dict:
-    """Tables 1-2, Figure 4 curves and prior diversity from the shipped checkpoints -> JSON-able dict."""
-    spec = spec or DataSpec()
-    _, test_ds = datasets(spec, load_clips(spec, progress=progress))
-    models = {name: load_model(name, checkpoints) for name in lesson02_models()}
-    t0 = time.perf_counter()
-    out = lesson02_tables(models, test_ds, seed)
-    out["prior_diversity"] = prior_diversity(models["vae_lstm"], test_ds, seed=seed)
-    out["eval_seconds"] = round(time.perf_counter() - t0, 1)
-    return rounded(out)
-
-
-def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True, only=None,
-                   checkpoints: Path = CHECKPOINTS) -> dict:
-    """Generate the data, train every lesson-02 model (or those named in ``only``), save checkpoints
-    (+ manifest) -> eval results."""
-    from course_lib.training import save_checkpoint
-
-    spec = spec or DataSpec()
-    t0 = time.perf_counter()
-    train_ds, test_ds = datasets(spec, load_clips(spec, progress=progress))
-    timings = {"data_seconds": round(time.perf_counter() - t0, 1)}
-    command = "python -m course_lib.reproduce vae_lstm"
-    for name, (_, config, _spec) in lesson02_models().items():
-        if only and name not in only:
-            continue
-        model, hist = train_one(name, train_ds, seed, progress=progress)
-        timings[name] = round(hist.seconds, 1)
-        metrics = {"train_seconds": round(hist.seconds, 1), "steps": hist.num_steps,
-                   "final_loss": round(hist.final("loss", 20), 6), "train_clips": len(train_ds),
-                   "test_clips": len(test_ds), "data_seed": spec.seed, "train_seed": seed}
-        save_checkpoint(model, config, checkpoints / f"{name}.pt", command=command, metrics=metrics, overwrite=True)
-        print(f"{name}: {hist}", file=sys.stderr)
-    train_ds.save_stats(checkpoints / "vae_lstm_stats.npz")
-    out = eval_vae_lstm(spec, seed, progress, checkpoints)
-    out["train_seconds"] = timings
-    out["total_seconds"] = round(time.perf_counter() - t0, 1)
-    record_results(out, checkpoints)
-    return out
-
-
-def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
-    """Store the tables in the VAE-LSTM checkpoint's manifest entry (``metrics["tables"]``), so the
-    notebook can show the >= 100-clip numbers in CI mode without re-running the evaluation."""
-    from course_lib.training import save_checkpoint
-
-    manifest = json.loads((checkpoints / "MANIFEST.json").read_text())
-    entry = manifest["vae_lstm"]
-    model = load_model("vae_lstm", checkpoints)
-    metrics = {**entry["metrics"], "tables": {k: v for k, v in results.items() if k != "curves"}}
-    return save_checkpoint(model, model.config, checkpoints / "vae_lstm.pt", command=entry["command"],
-                           metrics=metrics, overwrite=True)
-
-
-def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
-    """The tables stored by `record_results` (the shipped >= 100-clip evaluation)."""
-    return json.loads((checkpoints / "MANIFEST.json").read_text())["vae_lstm"]["metrics"]["tables"]
 
 
 # ----------------------------------------------------------------------------- the command line
@@ -325,9 +46,19 @@ def _lazy(module: str, name: str):
     return call
 
 
-EXPERIMENTS = {"vae_lstm": (train_vae_lstm, eval_vae_lstm),
-               "gmm_rnn": (_lazy("experiments.gmm_rnn", "train_gmm_rnn"), _lazy("experiments.gmm_rnn", "eval_gmm_rnn")),
-               "hvrnn": (_lazy("experiments.hvrnn", "train_hvrnn"), _lazy("experiments.hvrnn", "eval_hvrnn"))}
+EXPERIMENTS = {name: (_lazy(f"experiments.{name}", f"train_{name}"), _lazy(f"experiments.{name}", f"eval_{name}"))
+               for name in ("vae_lstm", "gmm_rnn", "hvrnn")}
+
+# Lesson 02's experiment used to live here; these names still resolve (lesson 03's data builds on it).
+_MOVED_TO_VAE_LSTM = ("DataSpec", "generate_clips", "load_clips", "datasets", "DATA_FILE", "FRAMES")
+
+
+def __getattr__(name: str):
+    if name in _MOVED_TO_VAE_LSTM:
+        from course_lib.experiments import vae_lstm
+
+        return getattr(vae_lstm, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def main(argv=None) -> int:

@@ -6,6 +6,7 @@ import pytest
 import torch
 from torch.nn import functional as F
 
+from course_lib.models.vae import gaussian_kl
 from course_lib.models.vae_lstm import ModifiedLstmCell, VaeLstm, VaeLstmConfig, conv_encoder
 
 
@@ -85,7 +86,7 @@ def test_decoder_train_vs_test_branch():
 def test_loss_terms_match_formulas():
     """nll = -log N(x | x_hat, s^2) summed, kl = sum_t KL (eq. 4), checked with torch.distributions."""
     torch.manual_seed(4)
-    m = VaeLstm(tiny(l1=0.5)).eval()
+    m = VaeLstm(tiny(l1=0.5, generation_weight=0.0)).eval()
     x = torch.randn(3, 16, 66)
     eps = torch.randn(3, 4, 8)
     torch.manual_seed(5)
@@ -101,6 +102,46 @@ def test_loss_terms_match_formulas():
     torch.testing.assert_close(out["loss"], (nll + kl + 0.5 * m.l1_penalty()).detach(), rtol=1e-4, atol=1e-3)
     assert m(x, eps=eps)["z"].shape == (3, 4, 8)
     assert math.isfinite(float(out["loss"].detach()))
+
+
+def test_generation_elbo_is_algorithm1_trained():
+    """generation_weight adds -log p(X | Algorithm 1 from z_1 ~ q(z_1 | X_1:4)) + KL(z_1) to the paper's loss."""
+    torch.manual_seed(9)
+    m = VaeLstm(tiny(generation_weight=0.5, l1=0.0)).eval()
+    x = torch.randn(3, 16, 66)
+    torch.manual_seed(1)
+    out = m.loss(x)
+    torch.manual_seed(1)
+    fwd = m(x)
+    paper = m.nll(x, fwd["x_hat"]) + gaussian_kl(fwd["mu"], fwd["logvar"]).sum() / 3
+    mu1, logvar1 = m.initial_posterior(x[:, :4], 16)
+    z1 = mu1 + torch.exp(0.5 * logvar1) * torch.randn_like(mu1)
+    x_gen = m.generate(x[..., 63:], z1)  # Algorithm 1 with this z_1
+    gen = -torch.distributions.Normal(x_gen, m.config.obs_std).log_prob(x).sum() / 3
+    gen_kl = torch.distributions.kl_divergence(torch.distributions.Normal(mu1, torch.exp(0.5 * logvar1)),
+                                               torch.distributions.Normal(0.0, 1.0)).sum() / 3
+    torch.testing.assert_close(out["gen_nll"], gen, rtol=1e-4, atol=1e-3)
+    torch.testing.assert_close(out["gen_kl"], gen_kl, rtol=1e-4, atol=1e-4)
+    torch.testing.assert_close(out["loss"], (paper + 0.5 * (gen + gen_kl)).detach(), rtol=1e-4, atol=1e-3)
+    assert out["kl_per_dim"].shape == (8,)
+    torch.testing.assert_close(out["kl_per_dim"].sum() * 4, out["kl"], rtol=1e-5, atol=1e-5)  # 4 steps
+
+
+def test_kl_annealing_and_free_bits():
+    """KL weight 0 -> 1 over kl_warmup_steps of training; free bits charge max(lambda, KL) per step and dim."""
+    torch.manual_seed(10)
+    m = VaeLstm(tiny(generation_weight=0.0, l1=0.0, kl_warmup_steps=4))
+    x = torch.randn(2, 16, 66)
+    betas = [m.loss(x)["beta"] for _ in range(6)]
+    assert betas == [0.0, 0.25, 0.5, 0.75, 1.0, 1.0]
+    m.eval()
+    assert m.loss(x)["beta"] == 1.0 and int(m.num_updates) == 6  # evaluation does not advance the schedule
+    fb = VaeLstm(tiny(generation_weight=0.0, free_bits=2.0))
+    kl = torch.tensor([[[0.5, 3.0]], [[1.5, 1.0]]])  # (N=2, T'=1, D=2): batch means 1.0 and 2.0
+    assert float(fb.kl_penalty(kl)) == 4.0  # max(2, 1) + max(2, 2)
+    assert float(m.kl_penalty(kl)) == 3.0  # no free bits: the sum per clip
+    with pytest.raises(ValueError, match="free_bits"):
+        VaeLstmConfig(free_bits=-1.0)
 
 
 def test_loss_decreases_on_small_batch():
@@ -158,7 +199,7 @@ def test_evaluation_decoding_round_trip():
 
     from course_lib.datasets import WindowDataset
     from course_lib.evaluation import prediction_error
-    from course_lib.reproduce import DataSpec, generate_clips, test_batch, to_world, with_control
+    from course_lib.experiments.vae_lstm import DataSpec, generate_clips, test_batch, to_world, with_control
 
     clips = generate_clips(DataSpec(n_clips=1), progress=False)
     ds = WindowDataset(clips, "positions_control", length=240, fps=60)
@@ -181,3 +222,59 @@ def test_per_step_prior_uses_training_branch():
     torch.testing.assert_close(out, m.decode(m.run_decoder(m.encode_control(control), z)))
     with pytest.raises(ValueError, match="per_step"):
         m.generate(control, z1=torch.zeros(2, 8), per_step=True)
+
+
+def test_latent_diagnostics_known_answers():
+    """A model whose inference net outputs mu = 0, logvar = 0 has KL 0 in every dimension; with W_c = 0 neither
+    z_t nor z_1 reaches the canvas, so zeroing z moves nothing; with W_c restored it does."""
+    from course_lib.datasets import WindowDataset
+    from course_lib.experiments.vae_lstm import DataSpec, generate_clips, latent_diagnostics
+
+    ds = WindowDataset(generate_clips(DataSpec(n_clips=2), progress=False), "positions_control", length=240, fps=60)
+    torch.manual_seed(11)
+    m = VaeLstm(tiny()).eval()
+    used = latent_diagnostics(m, ds)
+    assert used["zero_z_training_branch_m"] > 1e-4 and used["zero_z1_algorithm1_m"] > 1e-5
+    with torch.no_grad():
+        m.inference[3].weight.zero_()
+        m.inference[3].bias.zero_()  # mu = logvar = ELU(0) = 0 after the last pool
+        w_c = m.cell.W_c.weight.clone()
+        m.cell.W_c.weight.zero_()
+    cut = latent_diagnostics(m, ds)
+    assert cut["kl_per_dim_min"] == cut["kl_per_dim_mean"] == 0.0 and cut["dims_above_0.05"] == 0
+    assert cut["zero_z_training_branch_m"] == 0.0 and cut["zero_z1_algorithm1_m"] == 0.0
+    with torch.no_grad():
+        m.cell.W_c.weight.copy_(w_c)
+    assert latent_diagnostics(m, ds)["zero_z1_algorithm1_m"] == 0.0  # mu_1 = 0 already: zeroing changes nothing
+
+
+def test_must_show_checks_read_the_right_numbers():
+    """Issue 15's checks on a crafted results dict: each flips when its number crosses its bound."""
+    from course_lib.experiments.vae_lstm import BASELINES, FRAMES, must_show
+
+    row = lambda v: {str(f): v for f in FRAMES}  # noqa: E731
+    t1 = {**{b: row(1.0) for b in BASELINES}, "VAE-LSTM": row(0.1), "VAE-LSTM (prior sample)": row(0.12)}
+    t2 = {**{b: row(0.02) for b in BASELINES}, "VAE-LSTM": row(0.01), "VAE-LSTM (prior sample)": row(0.012)}
+    div = {k: {"apd_m": 0.06, "path_error_m": 0.1} for k in ("algorithm1", "per_step_prior")}
+    res = {"table1": t1, "table2": t2, "prior_diversity": div, "latent": {"kl_per_dim_min": 0.1}}
+    assert all(h for _, _, h in must_show(res).values())
+    t1["VAE-LSTM (prior sample)"] = dict(t1["VAE-LSTM"])  # identical rows, as the collapsed model's
+    div["algorithm1"]["apd_m"] = 0.001
+    t2["VAE-LSTM"]["210"] = 0.03  # above the baselines and not flat
+    failed = {k for k, (_, _, h) in must_show(res).items() if not h}
+    assert failed == {"T1: 4-frame and prior rows differ (max relative difference)",
+                      "Algorithm 1: APD of prior samples under one control (m)",
+                      "T2: VAE-LSTM (4 frames) / best baseline (max over frames)",
+                      "T2: VAE-LSTM flat, frame 210 / frame 70"}
+
+
+def test_reproduce_registers_vae_lstm_and_keeps_old_names():
+    """reproduce.py is the registry + CLI; lesson 02's experiment lives in experiments/vae_lstm.py, and the
+    names lesson 03 imports from reproduce still resolve to it."""
+    from course_lib import reproduce
+    from course_lib.experiments import vae_lstm
+
+    train_fn, eval_fn = reproduce.EXPERIMENTS["vae_lstm"]
+    assert (train_fn.__name__, eval_fn.__name__) == ("train_vae_lstm", "eval_vae_lstm")
+    assert reproduce.DataSpec is vae_lstm.DataSpec and reproduce.load_clips is vae_lstm.load_clips
+    assert not hasattr(reproduce, "lesson02_tables")

@@ -16,6 +16,13 @@ the floor frame + 3 control values, normalised) is modelled as
 At test time (Algorithm 1) only z_1 is drawn -- from the prior N(0, I), or from the posterior
 of the first 4 frames -- and the cell state is carried on by c(t) = alpha(f * W_c c(t-1) + i * W_h h^c_t).
 
+The paper's loss trains only the first branch of eq. (9): the recursion W_c c(t-1) that Algorithm 1
+runs is never trained, so on our data it forgets z_1 within a few steps and Algorithm 1 becomes a
+function of the control alone (lesson 02, "posterior collapse in action").  ``generation_weight`` > 0
+adds the ELBO of Algorithm 1's own generative path -- z_1 from the posterior of the first 4 frames,
+every later cell state by the recursion -- to the paper's loss; ``kl_warmup_steps`` (KL annealing)
+and ``free_bits`` are the usual collapse remedies of lesson 01, measured in lesson 02 as well.
+
 Differs from the paper:
 - pooling: the paper says "pooling window and stride of size 1" but also 240 -> 60 steps with two
   pooling layers, which needs window = stride = 2; we use 2.
@@ -27,6 +34,8 @@ Differs from the paper:
 - the paper does not say how z_1 is read from 4 initial frames; we run the inference network on
   the 4 frames padded to T by repeating the 4th (the paper pads clips with their first/last pose)
   and take the first pooled step's posterior mean.
+- ``generation_weight`` > 0 adds Algorithm 1's ELBO to eq. (5), see above; the paper trains the first
+  branch of eq. (9) only (``generation_weight`` = 0).
 - ``VaeLstmConfig.cpu()`` shrinks the widths (listed there) so a model trains in minutes on a
   2-core CPU and its checkpoint stays under 5 MB; the paper trains 5000 epochs, we train minutes.
 """
@@ -39,6 +48,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 from torch.nn import functional as F
+
+from course_lib.models.vae import gaussian_kl, linear_beta
 
 __all__ = ["ModifiedLstmCell", "VaeLstm", "VaeLstmConfig", "conv_encoder"]
 
@@ -61,9 +72,12 @@ class VaeLstmConfig:
     input_dropout: float = 0.1  # dropout on joint positions and controls (rate not given in the paper)
     obs_std: float = 0.2  # std of the Gaussian likelihood p(X|z), normalised units (not given in the paper)
     l1: float = 0.1  # l1 weight regularisation (sec. 4.2)
-    lr: float = 5e-4  # Adam learning rate (sec. 4.2); our short CPU runs use 1e-3 (reproduce.lesson02_models)
+    lr: float = 5e-4  # Adam learning rate (sec. 4.2); our short CPU runs use 1e-3 (experiments.vae_lstm)
     clip_length: int = 240  # frames per training clip (4 s at 60 fps)
     init_frames: int = 4  # frames that determine the first pooled step (pool ** 2)
+    generation_weight: float = 0.0  # weight of Algorithm 1's ELBO added to eq. (5) (0 = the paper's loss)
+    kl_warmup_steps: int = 0  # KL annealing: the KL weight grows linearly 0 -> 1 over these steps (0 = off)
+    free_bits: float = 0.0  # nats per latent dim and pooled step that the KL does not charge (0 = off)
 
     @property
     def units(self) -> int:
@@ -92,6 +106,8 @@ class VaeLstmConfig:
             raise ValueError(f"VaeLstmConfig: clip_length {self.clip_length} must be divisible by pool^2")
         if self.obs_std <= 0 or self.l1 < 0 or not 0 <= self.input_dropout < 1:
             raise ValueError(f"VaeLstmConfig: need obs_std > 0, l1 >= 0, 0 <= input_dropout < 1: {self}")
+        if self.generation_weight < 0 or self.kl_warmup_steps < 0 or self.free_bits < 0:
+            raise ValueError(f"VaeLstmConfig: generation_weight, kl_warmup_steps, free_bits must be >= 0: {self}")
 
 
 # ----------------------------------------------------------------------------- building blocks
@@ -155,6 +171,8 @@ class VaeLstm(nn.Module):
         self.control_encoder = conv_encoder(c.control_dim, c.control_channels, c.control_hidden, c.kernel, c.pool)
         self.cell = ModifiedLstmCell(c.units, c.control_hidden)
         self.decoder = conv_decoder(c.units, c.dec_channels, c.dim, c.kernel, c.pool)
+        # optimiser steps taken (drives the KL annealing); not saved: a schedule only matters in training
+        self.register_buffer("num_updates", torch.zeros((), dtype=torch.long), persistent=False)
 
     # --- shapes ---------------------------------------------------------------------------
 
@@ -205,31 +223,66 @@ class VaeLstm(nn.Module):
     # --- training -------------------------------------------------------------------------
 
     def forward(self, x: torch.Tensor, eps: torch.Tensor | None = None) -> dict:
-        """x: (N, T, 66) -> {"x_hat": (N, T, 66), "mu", "logvar", "z": (N, T', U)} (training-mode pass)."""
+        """x: (N, T, 66) -> {"x_hat": (N, T, 66), "mu", "logvar", "z": (N, T', U), "h_c": (N, T', H)}
+        (the training branch of eq. 9)."""
         mu, logvar = self.encode(x)
         eps = torch.randn_like(mu) if eps is None else eps
         z = mu + torch.exp(0.5 * logvar) * eps  # eq. (3)
         h_c = self.encode_control(x[..., self.config.pose_dim:])
-        return {"x_hat": self.decode(self.run_decoder(h_c, z)), "mu": mu, "logvar": logvar, "z": z}
+        return {"x_hat": self.decode(self.run_decoder(h_c, z)), "mu": mu, "logvar": logvar, "z": z, "h_c": h_c}
 
     def l1_penalty(self) -> torch.Tensor:
         """sum |W| over every weight matrix / kernel (biases excluded)."""
         return sum(p.abs().sum() for name, p in self.named_parameters() if p.ndim > 1)
 
-    def loss(self, batch) -> dict:
-        """batch: (N, T, 66) or {"x": ...} -> {"loss", "nll", "kl", "l1", "mse"} (eq. 4-5 + l1)."""
-        x = batch["x"] if isinstance(batch, dict) else batch
-        out = self(x)
-        N = x.shape[0]
+    def nll(self, x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
+        """L_x = -log N(X | X_hat, obs_std^2 I): x, x_hat (N, T, 66) -> summed over frames and features,
+        averaged over clips (scalar)."""
         var = self.config.obs_std ** 2
-        # L_x = -log N(X | X_hat, obs_std^2 I), summed over frames and features
-        nll = 0.5 * (((x - out["x_hat"]) ** 2) / var + math.log(var) + LOG_2PI).sum() / N
+        return 0.5 * (((x - x_hat) ** 2) / var + math.log(var) + LOG_2PI).sum() / x.shape[0]
+
+    def kl_weight(self) -> float:
+        """The KL weight now: 1 (the ELBO), or linear from 0 over ``kl_warmup_steps`` (KL annealing)."""
+        c = self.config
+        return linear_beta(int(self.num_updates), c.kl_warmup_steps) if c.kl_warmup_steps else 1.0
+
+    def kl_penalty(self, kl: torch.Tensor) -> torch.Tensor:
+        """kl: (N, ..., D) per clip, step and dim -> the charged KL (scalar, per clip): with free bits
+        each (step, dim)'s batch-mean KL below ``free_bits`` nats is free (Kingma et al. 2016)."""
+        if not self.config.free_bits:
+            return kl.sum() / kl.shape[0]
+        return kl.mean(0).clamp(min=self.config.free_bits).sum()
+
+    def generation_elbo(self, x: torch.Tensor, h_c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Algorithm 1's path, trained: z_1 ~ q(z_1 | X_{1:4}) (reparameterised), c(t) = RNN^dec(c(t-1), h^c_t)
+        -> (nll, kl per clip (N, U), x_hat (N, T, 66))."""
+        mu1, logvar1 = self.initial_posterior(x[:, : self.config.init_frames], x.shape[1])
+        z1 = mu1 + torch.exp(0.5 * logvar1) * torch.randn_like(mu1)  # eq. (3)
+        x_gen = self.decode(self.run_decoder(h_c, z1))
+        return self.nll(x, x_gen), gaussian_kl(mu1, logvar1), x_gen
+
+    def loss(self, batch) -> dict:
+        """batch: (N, T, 66) or {"x": ...} -> {"loss", "nll", "kl", "kl_per_dim" (U,), "l1", "mse", and with
+        generation_weight > 0 "gen_nll", "gen_kl", "gen_mse"} (eq. 4-5 + l1 + Algorithm 1's ELBO)."""
+        x = batch["x"] if isinstance(batch, dict) else batch
+        c = self.config
+        out = self(x)
+        nll = self.nll(x, out["x_hat"])
         # L_z = sum_t KL(q(z_t | X) || N(0, I))                                     -- eq. (4)
-        kl = 0.5 * (out["mu"] ** 2 + out["logvar"].exp() - out["logvar"] - 1.0).sum() / N
-        l1 = self.l1_penalty()
-        loss = nll + kl + self.config.l1 * l1  # eq. (5) + l1 regularisation (sec. 4.2)
-        mse = F.mse_loss(out["x_hat"], x)
-        return {"loss": loss, "nll": nll.detach(), "kl": kl.detach(), "l1": l1.detach(), "mse": mse.detach()}
+        kl_all = gaussian_kl(out["mu"], out["logvar"])  # (N, T', U)
+        kl = kl_all.sum() / x.shape[0]
+        beta, l1 = self.kl_weight(), self.l1_penalty()
+        loss = nll + beta * self.kl_penalty(kl_all) + c.l1 * l1  # eq. (5) + l1 regularisation (sec. 4.2)
+        logs = {"nll": nll.detach(), "kl": kl.detach(), "kl_per_dim": kl_all.mean((0, 1)).detach(),
+                "l1": l1.detach(), "mse": F.mse_loss(out["x_hat"], x).detach(), "beta": beta}
+        if c.generation_weight:
+            gen_nll, gen_kl, x_gen = self.generation_elbo(x, out["h_c"])
+            loss = loss + c.generation_weight * (gen_nll + beta * self.kl_penalty(gen_kl))
+            logs.update(gen_nll=gen_nll.detach(), gen_kl=(gen_kl.sum() / x.shape[0]).detach(),
+                        gen_mse=F.mse_loss(x_gen, x).detach())
+        if self.training:
+            self.num_updates += 1
+        return {"loss": loss, **logs}
 
     # --- synthesis (Algorithm 1) -----------------------------------------------------------
 
@@ -253,20 +306,25 @@ class VaeLstm(nn.Module):
             raise ValueError(f"z1 must be ({control.shape[0]}, {self.config.units}), got {tuple(z1.shape)}")
         return self.decode(self.run_decoder(h_c, z1))  # X_hat = CNN^dec(m_c(T))
 
-    @torch.no_grad()
-    def posterior_z1(self, x_init: torch.Tensor, length: int, sample: bool = False,
-                     generator: torch.Generator | None = None) -> torch.Tensor:
-        """x_init: (N, n, 66) first frames (n >= init_frames) -> z_1: (N, U), the posterior of the first
-        pooled step (mean, or a sample if ``sample``), the clip padded to ``length`` with its last frame."""
+    def initial_posterior(self, x_init: torch.Tensor, length: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """x_init: (N, n, 66) first frames (n >= init_frames) -> mu, logvar (N, U) of z_1: the inference
+        network on the frames padded to ``length`` with the last one, its first pooled step."""
         n = x_init.shape[1] if x_init.ndim == 3 else 0
         if n < self.config.init_frames:
             raise ValueError(f"x_init must be (N, >= {self.config.init_frames}, 66), got {tuple(x_init.shape)}")
         pad = x_init[:, -1:].expand(-1, length - n, -1)
         mu, logvar = self.encode(torch.cat((x_init, pad), 1))
+        return mu[:, 0], logvar[:, 0]
+
+    @torch.no_grad()
+    def posterior_z1(self, x_init: torch.Tensor, length: int, sample: bool = False,
+                     generator: torch.Generator | None = None) -> torch.Tensor:
+        """x_init: (N, n, 66) first frames (n >= init_frames) -> z_1: (N, U), the posterior of the first
+        pooled step (mean, or a sample if ``sample``), the clip padded to ``length`` with its last frame."""
+        mu, logvar = self.initial_posterior(x_init, length)
         if not sample:
-            return mu[:, 0]
-        eps = torch.randn(mu[:, 0].shape, generator=generator)
-        return mu[:, 0] + torch.exp(0.5 * logvar[:, 0]) * eps
+            return mu
+        return mu + torch.exp(0.5 * logvar) * torch.randn(mu.shape, generator=generator)
 
     @torch.no_grad()
     def predict(self, x_init: torch.Tensor, control: torch.Tensor) -> torch.Tensor:
