@@ -50,7 +50,14 @@ import numpy as np
 import torch
 
 from course_lib.motion import Motion, foot_contacts
-from course_lib.rotations import euler_to_quat, expmap_to_quat, quat_canonical, quat_to_euler, quat_to_expmap
+from course_lib.rotations import (
+    euler_to_quat,
+    expmap_to_quat,
+    matrix_to_quat,
+    quat_canonical,
+    quat_to_euler,
+    quat_to_expmap,
+)
 from course_lib.skeleton import Skeleton
 
 REPRESENTATIONS = ("positions_control", "state_features", "quaternion_root")
@@ -291,3 +298,54 @@ def decode_to_positions(features, name: str, skeleton: Skeleton, fps: float, ini
     """(T, D) -> world joint positions (T, J, 3), whatever the representation."""
     out = decode(features, name, skeleton, fps, init)
     return out if isinstance(out, np.ndarray) else out.positions()
+
+
+# --- joint positions -> rotations (for BVH export of positions_control output) ----------
+
+
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Unit vectors a, b (..., 3) -> the smallest rotation matrix (..., 3, 3) taking a to b (Rodrigues)."""
+    v, c = np.cross(a, b), (a * b).sum(-1)
+    vx = np.zeros((*v.shape[:-1], 3, 3))
+    vx[..., 0, 1], vx[..., 0, 2], vx[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    vx = vx - np.swapaxes(vx, -1, -2)
+    k = 1.0 / np.maximum(1.0 + c, 1e-9)  # a = -b (a half turn) has no unique axis; never met by bones
+    return np.eye(3) + vx + vx @ vx * k[..., None, None]
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def motion_from_positions(positions, skeleton: Skeleton, fps: float) -> Motion:
+    """World joint positions (T, J, 3) -> a Motion whose FK points every bone of ``skeleton`` along the
+    positions' bones (bone lengths stay the skeleton's).
+
+    Per joint, parents first: with several children the global rotation is the Kabsch fit of the rest
+    bone directions to the observed ones; with one child, the smallest turn of the parent's frame that
+    aligns that bone (no twist is observable from positions); an end effector keeps its parent's frame.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    J = skeleton.num_joints
+    if p.ndim != 3 or p.shape[1:] != (J, 3) or not np.isfinite(p).all():
+        raise ValueError(f"motion_from_positions: positions must be finite (T, {J}, 3), got {p.shape}")
+    G = np.zeros((len(p), J, 3, 3))
+    for j in range(J):
+        parent = G[:, skeleton.parents[j]] if j else np.broadcast_to(np.eye(3), (len(p), 3, 3))
+        kids = skeleton.children(j)
+        rest = _unit_rows(skeleton.offsets[kids]) if kids else None
+        seen = _unit_rows(p[:, kids] - p[:, j:j + 1]) if kids else None  # (T, K, 3)
+        if len(kids) >= 2:  # R = argmin sum_k |R rest_k - seen_k|^2 = U diag(1, 1, det) V^T
+            U, _, Vt = np.linalg.svd(np.einsum("tki,kj->tij", seen, rest))
+            D = np.ones((len(p), 3))
+            D[:, 2] = np.sign(np.linalg.det(U @ Vt))
+            G[:, j] = (U * D[:, None]) @ Vt
+        elif kids:
+            G[:, j] = _rotation_between(np.einsum("tij,j->ti", parent, rest[0]), seen[:, 0]) @ parent
+        else:
+            G[:, j] = parent
+    parents_G = np.concatenate((np.broadcast_to(np.eye(3), (len(p), 1, 3, 3)),
+                                G[:, [max(q, 0) for q in skeleton.parents[1:]]]), 1)
+    local = np.swapaxes(parents_G, -1, -2) @ G  # R_local = G_parent^T G
+    rotations = quat_canonical(matrix_to_quat(torch.from_numpy(local))).numpy()
+    return Motion(rotations, p[:, 0].copy(), skeleton, fps)

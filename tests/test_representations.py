@@ -199,3 +199,21 @@ def test_contact_bits_agree_with_the_generators_stance():
         bits = R.encode_state_features(m)[:, -2:]
         agree.append((bits == m.meta["contacts"]).mean())
     assert np.mean(agree) > 0.9
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_motion_from_positions_recovers_the_bones(seed):
+    """FK(motion_from_positions(FK(m))) == FK(m) for a random motion (every bone direction and the root),
+    and on a skeleton with other bone lengths each bone keeps its direction; bad input is a clear error."""
+    m = random_motion(T=60, seed=seed)
+    pos = m.positions()
+    back = R.motion_from_positions(pos, m.skeleton, m.fps)
+    np.testing.assert_allclose(back.positions(), pos, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(back.rotations, axis=-1), 1.0, atol=1e-12)
+    longer = m.skeleton.scaled(1.2)
+    moved = R.motion_from_positions(pos, longer, m.fps).positions()
+    for j, p in enumerate(m.skeleton.parents[1:], 1):
+        a, b = pos[:, j] - pos[:, p], moved[:, j] - moved[:, p]
+        np.testing.assert_allclose(b, 1.2 * a, atol=1e-9)  # same direction, the new skeleton's length
+    with pytest.raises(ValueError, match="positions"):
+        R.motion_from_positions(pos[:, :20], m.skeleton, m.fps)
