@@ -94,3 +94,26 @@ def test_c2st_rejects_bad_input():
         c2st(np.zeros((10, 8)), np.zeros((10, 9)))
     with pytest.raises(ValueError, match="NaN"):
         c2st(np.zeros((10, 8)), np.full((10, 8), np.nan))
+
+
+def test_perturbations_change_what_they_say(held_out):
+    clip = held_out[:2]
+    turned = turn_joints(clip, 3, joints=["LeftFoot", "Head"])
+    skel = clip[0].skeleton
+    changed = {skel.names[j] for j in range(skel.num_joints)
+               if not np.allclose(turned[0].rotations[:, j], clip[0].rotations[:, j])}
+    assert changed == {"LeftFoot", "Head"}
+    cos = np.abs((turned[0].rotations * clip[0].rotations).sum(-1))[:, skel.index("Head")]
+    np.testing.assert_allclose(np.degrees(2 * np.arccos(np.clip(cos, -1, 1))), 3.0, atol=1e-6)  # the angle turned
+    assert [m.action for m in drop_labels(held_out)] and {m.action for m in drop_labels(held_out)} == {"jog", "jump"}
+    assert np.allclose(time_reversed(clip[0]).root_positions, clip[0].root_positions[::-1])
+
+
+def test_diversity_of_copies_is_zero_and_counts_recognised_clips(held_out):
+    from course_lib.experiments.hvrnn import diversity
+
+    jumps = [m for m in held_out if m.action == "jump"]
+    d = diversity([jumps[0]] * 4, load_classifier("action"))
+    assert d["apd"] == pytest.approx(0.0, abs=1e-12) and d["recognised"] == 1.0
+    walked = diversity([m for m in held_out if m.action == "walk"][:4], load_classifier("action"))
+    assert walked["travel"] > 1.0 > d["travel"]  # walks leave their start, a jump lands near it

@@ -25,15 +25,20 @@ def _check(motions) -> list[Motion]:
     return list(motions)
 
 
-def turn_joints(motions: list[Motion], degrees: float, seed: int = 0) -> list[Motion]:
-    """Every joint's local rotation (root included) turned by a constant `degrees` about a random axis
-    (one axis per joint, the same for every clip and frame, seeded): q_j <- q_j r_j.  A few degrees are
-    invisible; every quaternion channel moves, fixed degrees of freedom included."""
+def turn_joints(motions: list[Motion], degrees: float, seed: int = 0, joints=None) -> list[Motion]:
+    """Every joint's local rotation (root included; or only those named in `joints`) turned by a constant
+    `degrees` about a random axis (one axis per joint, the same for every clip and frame, seeded):
+    q_j <- q_j r_j.  A few degrees are invisible; every quaternion channel moves, fixed degrees of freedom
+    included."""
     motions = _check(motions)
     J = motions[0].skeleton.num_joints
     axes = np.random.default_rng(seed).standard_normal((J, 3))
+    angles = np.full(J, np.radians(degrees))
+    if joints is not None:
+        chosen = [motions[0].skeleton.index(name) for name in joints]
+        angles[np.setdiff1d(np.arange(J), chosen)] = 0.0
     r = axis_angle_to_quat(torch.from_numpy(axes / np.linalg.norm(axes, axis=1, keepdims=True)),
-                           torch.full((J,), np.radians(degrees), dtype=torch.float64))  # (J, 4)
+                           torch.from_numpy(angles))  # (J, 4)
     return [dataclasses.replace(m, rotations=quat_mul(torch.from_numpy(m.rotations), r.expand(len(m), J, 4)).numpy())
             for m in motions]
 

@@ -289,9 +289,14 @@ def attribute_grid(n_per: int) -> tuple[torch.Tensor, torch.Tensor]:
     return a, s
 
 
-def generate(model, n_per: int = 100, frames: int = SEQ_LEN, seed: int = 0) -> dict:
-    """n_per samples per action x style -> a `sequences`-like dict of raw features (8 n_per, frames, 90)."""
-    a, s = attribute_grid(n_per)
+def generate(model, n_per: int = 100, frames: int = SEQ_LEN, seed: int = 0, attribute: tuple[str, str] | None = None
+             ) -> dict:
+    """n_per samples per action x style (or of the one (action, style) `attribute`) -> a `sequences`-like dict
+    of raw features (8 n_per or n_per, frames, 90)."""
+    if attribute is None:
+        a, s = attribute_grid(n_per)
+    else:
+        a, s = torch.full((n_per,), ACTIONS.index(attribute[0])), torch.full((n_per,), STYLES.index(attribute[1]))
     x = model.sample(a, s, frames, generator=torch.Generator().manual_seed(seed))
     return {"x": x.float(), "action_id": a, "style_id": s, "subject": ["generated"] * len(a)}
 
@@ -334,6 +339,33 @@ def collapsed_fraction(motions: list[Motion], thresholds: tuple[float, float]) -
     """Fraction of clips whose last second has speed AND pose variance below the thresholds (mean-pose collapse)."""
     speed, var = last_second_activity(motions)
     return float(np.mean((speed < thresholds[0]) & (var < thresholds[1])))
+
+
+@torch.no_grad()
+def joint_errors(model, data: dict, seed: int = 0) -> np.ndarray:
+    """Teacher-forced reconstruction (posterior z, the data's words) of a `sequences` dict -> mean geodesic
+    error d1 (eq. 17) of each joint's rotation, degrees (J,)."""
+    from course_lib.rotations import quat_geodesic
+
+    J = model.config.num_joints
+    out = model.reconstruct(data["x"], data["action_id"], data["style_id"], torch.Generator().manual_seed(seed))
+    q, q_hat = data["x"][..., : 4 * J].unflatten(-1, (J, 4)), out["x_hat"][..., : 4 * J].unflatten(-1, (J, 4))
+    return torch.rad2deg(quat_geodesic(q.double(), q_hat.double(), "d1")).mean((0, 1)).numpy()
+
+
+def diversity(motions: list[Motion], classifier) -> dict:
+    """Clips of one requested action -> {"apd": APD of root-relative positions (m), "recognised": fraction the
+    action classifier labels as that action, "apd_recognised": the APD of those alone, "travel": mean
+    floor distance of the root from first to last frame (m)}.  An APD above real data's is no virtue when
+    the extra spread is motion of another kind."""
+    from course_lib.evaluation import apd, classifier_features, motions_to_batch
+
+    pos = _positions(motions)
+    probs = classifier_features(motions_to_batch(motions, classifier.config), classifier, kind="proba")
+    ok = probs.argmax(1) == np.array([classifier.config.classes.index(m.action) for m in motions])
+    root = np.stack([m.root_positions[[0, -1]] for m in motions])  # (N, 2, 3)
+    return {"apd": apd(pos), "recognised": float(ok.mean()), "apd_recognised": apd(pos[ok]) if ok.sum() > 1 else None,
+            "travel": float(np.linalg.norm(root[:, 1, [0, 2]] - root[:, 0, [0, 2]], axis=-1).mean())}
 
 
 def scores(motions: list[Motion], reference: list[Motion], classifiers: dict, seed: int = 0) -> dict:
