@@ -278,3 +278,21 @@ def test_reproduce_registers_vae_lstm_and_keeps_old_names():
     assert (train_fn.__name__, eval_fn.__name__) == ("train_vae_lstm", "eval_vae_lstm")
     assert reproduce.DataSpec is vae_lstm.DataSpec and reproduce.load_clips is vae_lstm.load_clips
     assert not hasattr(reproduce, "lesson02_tables")
+
+
+def test_recipe_sweep_tool_runs_one_variant(tmp_path):
+    """tools/vae_lstm_sweep.py (the comparison behind the shipped recipe): one variant, 3 steps, every number."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "vae_lstm_sweep.py"
+    spec = importlib.util.spec_from_file_location("vae_lstm_sweep", path)
+    sweep = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sweep)
+    out = sweep.run(["paper_free_bits"], smoke=True, out_path=tmp_path / "r.json")
+    res = json.loads((tmp_path / "r.json").read_text())["variants"]["paper_free_bits"]
+    assert res == out["variants"]["paper_free_bits"] and res["steps"] == 3
+    assert res["overrides"] == {"generation_weight": 0.0, "free_bits": 0.5}
+    assert set(res["vae_rows"]["table1"]) == {"VAE-LSTM", "VAE-LSTM (prior sample)", "VAE-LSTM (prior, every step)"}
+    assert len(res["must_show"]) == 11 and res["latent"]["kl_per_dim_min"] >= 0

@@ -26,22 +26,25 @@ def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
     spec = V.DataSpec(n_clips=30) if smoke else V.DataSpec()
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)
     train_ds, test_ds = V.datasets(spec, clips)
-    baselines = {name: V.load_model(name) for name in V.lesson02_models() if name != "vae_lstm"}
+    baselines = {name: V.load_model(name) for name in V.lesson02_models() if not name.startswith("vae_lstm")}
     base = V.lesson02_tables(baselines, test_ds)
     out = {"baselines": rounded({k: base[k] for k in ("table1", "table2")}), "variants": {}}
     for name in names:
-        model, hist = V.train_one("vae_lstm", train_ds, seed=0, steps=3 if smoke else None, progress=False,
+        steps = 3 if smoke else V.VARIANTS[name].get("steps")
+        model, hist = V.train_one("vae_lstm", train_ds, seed=0, steps=steps, progress=False,
                                   config=V.variant_config(name))
         res = V.lesson02_tables({"vae_lstm": model}, test_ds)
         res = {"table1": {**base["table1"], **res["table1"]}, "table2": {**base["table2"], **res["table2"]},
-               "prior_diversity": V.prior_diversity(model, test_ds), "latent": V.latent_diagnostics(model, test_ds)}
+               "prior_diversity": V.prior_diversity(model, test_ds), "latent": V.latent_diagnostics(model, test_ds),
+               "posterior_pool_diversity": V.prior_diversity(model, test_ds, z1_pool=V.posterior_pool(model, test_ds))}
         res["latent"].pop("kl_per_dim")
         out["variants"][name] = rounded({
             "overrides": V.VARIANTS[name], "train_seconds": hist.seconds, "steps": hist.num_steps,
             "final_mse": hist.final("mse", 20), "final_gen_mse": hist.final("gen_mse", 20) if "gen_mse" in hist.step
             else None, "vae_rows": {k: {m: r for m, r in res[k].items() if m.startswith("VAE")}
                                     for k in ("table1", "table2")},
-            "prior_diversity": res["prior_diversity"], "latent": res["latent"],
+            "prior_diversity": res["prior_diversity"], "posterior_pool_diversity": res["posterior_pool_diversity"],
+            "latent": res["latent"],
             "must_show": {k: list(v) for k, v in V.must_show(res).items()}})
         print(f"{name}: {hist}", file=sys.stderr, flush=True)
         if out_path:  # written after every variant: a long sweep keeps what it finished

@@ -122,12 +122,15 @@ class TrainSpec:
 
 
 def lesson02_models() -> dict[str, tuple]:
-    """name -> (model class, config, TrainSpec): the CPU-sized models of Tables 1-2."""
+    """name -> (model class, config, TrainSpec): the CPU-sized models of Tables 1-2, and the VAE-LSTM
+    trained with the paper's loss alone (``vae_lstm_paper``: lesson 02's posterior-collapse exhibit)."""
     from course_lib.models.baselines import CRbm, CRbmConfig, Erd, ErdConfig, Lstm3lr, Lstm3lrConfig
     from course_lib.models.vae_lstm import VaeLstm, VaeLstmConfig
 
     return {
         "vae_lstm": (VaeLstm, VaeLstmConfig.cpu(), TrainSpec("vae_lstm", "VAE-LSTM", 1000, 16, 1e-3)),
+        "vae_lstm_paper": (VaeLstm, variant_config("paper"),
+                           TrainSpec("vae_lstm_paper", "VAE-LSTM, paper's loss", 1000, 16, 1e-3)),
         "erd": (Erd, ErdConfig.cpu(), TrainSpec("erd", "ERD", 500, 16, 1e-3)),
         "lstm3lr": (Lstm3lr, Lstm3lrConfig.cpu(), TrainSpec("lstm3lr", "LSTM-3LR", 500, 16, 1e-3)),
         "crbm_cd1": (CRbm, CRbmConfig.cpu(cd_k=1), TrainSpec("crbm_cd1", "cRBM, CD-1", 800, 16, 1e-3)),
@@ -187,12 +190,14 @@ def lesson02_predictions(models: dict, x: torch.Tensor, seed: int = 0) -> dict[s
     Table 1: baselines from 60 initial frames, own control; VAE-LSTM from 4 frames / the prior with the
     ground-truth control.  Table 2: everyone from 4 initial frames with the ground-truth control.
     """
+    from course_lib.models.vae_lstm import VaeLstm
+
     specs, control, T = lesson02_models(), x[..., -3:], x.shape[1]
     gen = torch.Generator().manual_seed(seed)
     t1, t2 = {}, {}
     for name, model in models.items():
         label = specs[name][2].label
-        if name == "vae_lstm":
+        if isinstance(model, VaeLstm):
             t1[label] = t2[label] = with_control(model.predict(x[:, :4], control), control)
             prior = with_control(model.generate(control, generator=gen), control)
             t1[label + " (prior sample)"] = t2[label + " (prior sample)"] = prior
@@ -223,29 +228,39 @@ def lesson02_tables(models: dict, test_ds: WindowDataset, seed: int = 0, frames=
     return out
 
 
-def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_samples: int = 5, seed: int = 0) -> dict:
+def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_samples: int = 5, seed: int = 0,
+                    z1_pool: torch.Tensor | None = None) -> dict:
     """Prior samples under one control, by Algorithm 1 (z_1 only) and with z_t drawn every step:
     APD (m) of S samples per control (the root on the given control's path, so APD is the body's
     difference only), and the path error (m): the mean distance of the root path integrated from the
     *model's own* control outputs to the ground-truth path (with the given control the path would
-    match by construction)."""
+    match by construction).  z1_pool: (M, U) z_1 values to draw from instead of N(0, I) (e.g. the
+    4-frame posterior means of other clips: is the prior or the decoder short of diversity?); then
+    only the Algorithm-1 entry is computed."""
     from course_lib.evaluation import apd, path_distance
 
     x, starts = test_batch(test_ds)
     x, starts = x[:n_controls], starts[:n_controls]
     out = {"controls": len(x), "samples_per_control": n_samples}
-    for key, per_step in (("algorithm1", False), ("per_step_prior", True)):
+    for key, per_step in (("algorithm1", False), ("per_step_prior", True))[: 1 if z1_pool is not None else 2]:
         gen = torch.Generator().manual_seed(seed)
         samples, path_err = [], []
         for i in range(len(x)):
             ctrl = x[i:i + 1, :, -3:].expand(n_samples, -1, -1)
-            pred = model.generate(ctrl, generator=gen, per_step=per_step)  # (S, T, 66)
+            z1 = None if z1_pool is None else z1_pool[torch.randperm(len(z1_pool), generator=gen)[:n_samples]]
+            pred = model.generate(ctrl, z1, generator=gen, per_step=per_step)  # (S, T, 66)
             own = to_world(pred, test_ds, [starts[i]] * n_samples)  # root from the model's own control
             samples.append(to_world(with_control(pred, ctrl), test_ds, [starts[i]] * n_samples))
             gt_path = to_world(x[i:i + 1], test_ds, starts[i:i + 1])[0, :, 0]
             path_err.append(path_distance(own, gt_path))
         out[key] = {"apd_m": apd(np.stack(samples)), "path_error_m": float(np.mean(path_err))}
     return out
+
+
+def posterior_pool(model, test_ds: WindowDataset) -> torch.Tensor:
+    """The 4-frame posterior means z_1 of every test clip (N, U): where the decoder has learnt to read z_1."""
+    x, _ = test_batch(test_ds)
+    return model.posterior_z1(x[:, : model.config.init_frames], x.shape[1])
 
 
 def joint_distance(a: torch.Tensor, b: torch.Tensor, ds: WindowDataset, starts, control: torch.Tensor) -> float:
@@ -283,14 +298,24 @@ def latent_diagnostics(model, test_ds: WindowDataset) -> dict:
 
 def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True,
                   checkpoints: Path = CHECKPOINTS) -> dict:
-    """Tables 1-2, Figure 4 curves and prior diversity from the shipped checkpoints -> JSON-able dict."""
+    """Tables 1-2, Figure 4 curves, prior diversity and latent diagnostics from the shipped checkpoints, and
+    the same for the paper's-loss model (``"paper_loss"``, not in the tables) -> JSON-able dict."""
     spec = spec or DataSpec()
     _, test_ds = datasets(spec, load_clips(spec, progress=progress))
     models = {name: load_model(name, checkpoints) for name in lesson02_models()}
+    paper = models.pop("vae_lstm_paper")
     t0 = time.perf_counter()
     out = lesson02_tables(models, test_ds, seed)
-    out["prior_diversity"] = prior_diversity(models["vae_lstm"], test_ds, seed=seed)
-    out["latent"] = latent_diagnostics(models["vae_lstm"], test_ds)
+    vae = models["vae_lstm"]
+    out["prior_diversity"] = prior_diversity(vae, test_ds, seed=seed)
+    out["posterior_pool_diversity"] = prior_diversity(vae, test_ds, seed=seed, z1_pool=posterior_pool(vae, test_ds))
+    out["latent"] = latent_diagnostics(vae, test_ds)
+    paper_tables = lesson02_tables({"vae_lstm_paper": paper}, test_ds, seed)
+    out["paper_loss"] = {"table1": paper_tables["table1"], "table2": paper_tables["table2"],
+                         "prior_diversity": prior_diversity(paper, test_ds, seed=seed),
+                         "posterior_pool_diversity": prior_diversity(paper, test_ds, seed=seed,
+                                                                     z1_pool=posterior_pool(paper, test_ds)),
+                         "latent": latent_diagnostics(paper, test_ds)}
     out["eval_seconds"] = round(time.perf_counter() - t0, 1)
     return rounded(out)
 
@@ -345,20 +370,25 @@ def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
 
 # name -> VaeLstmConfig.cpu() overrides.  "paper": eq. (5) alone (the first branch of eq. 9 trained);
 # annealing / free bits: lesson 01's collapse remedies on top of it; "algorithm1_elbo": eq. (5) plus the
-# ELBO of Algorithm 1's own path (the shipped preset); the last two combine it with the remedies.
+# ELBO of Algorithm 1's own path (the shipped preset); then that with annealing, with a likelihood std
+# twice as wide (obs_std, which the paper does not give, sets how many nats z_1 may cost), and trained
+# twice as long ("steps": optimiser steps instead of the shipped 1000).
 VARIANTS = {
     "paper": {"generation_weight": 0.0},
     "paper_kl_annealing": {"generation_weight": 0.0, "kl_warmup_steps": 500},
     "paper_free_bits": {"generation_weight": 0.0, "free_bits": 0.5},
     "algorithm1_elbo": {"generation_weight": 1.0},
+    "algorithm1_elbo_kl_annealing": {"generation_weight": 1.0, "kl_warmup_steps": 500},
+    "algorithm1_elbo_obs_std_0.4": {"generation_weight": 1.0, "obs_std": 0.4},
+    "algorithm1_elbo_2000_steps": {"generation_weight": 1.0, "steps": 2000},
 }
 
 
 def variant_config(name: str):
-    """The VaeLstmConfig of recipe ``name`` of ``VARIANTS``."""
+    """The VaeLstmConfig of recipe ``name`` of ``VARIANTS`` (its "steps", if any, is the training length)."""
     from course_lib.models.vae_lstm import VaeLstmConfig
 
-    return VaeLstmConfig.cpu(**VARIANTS[name])
+    return VaeLstmConfig.cpu(**{k: v for k, v in VARIANTS[name].items() if k != "steps"})
 
 
 BASELINES = ("ERD", "LSTM-3LR", "cRBM, CD-1", "cRBM, CD-15")

@@ -34,8 +34,8 @@ Differs from the paper:
 - the paper does not say how z_1 is read from 4 initial frames; we run the inference network on
   the 4 frames padded to T by repeating the 4th (the paper pads clips with their first/last pose)
   and take the first pooled step's posterior mean.
-- ``generation_weight`` > 0 adds Algorithm 1's ELBO to eq. (5), see above; the paper trains the first
-  branch of eq. (9) only (``generation_weight`` = 0).
+- ``generation_weight`` > 0 adds Algorithm 1's ELBO to eq. (5), see above (the CPU preset: 1); the paper
+  trains the first branch of eq. (9) only (``generation_weight`` = 0).
 - ``VaeLstmConfig.cpu()`` shrinks the widths (listed there) so a model trains in minutes on a
   2-core CPU and its checkpoint stays under 5 MB; the paper trains 5000 epochs, we train minutes.
 """
@@ -91,9 +91,10 @@ class VaeLstmConfig:
     @classmethod
     def cpu(cls, **overrides) -> VaeLstmConfig:
         """The CPU preset: widths 64->32 (enc), 128->64 (latent/LSTM), 64->32 and 128->64 (control),
-        128->64 (decoder), l1 0.1 -> 1e-4 (with our per-clip sums 0.1 dominates the loss at this size)."""
+        128->64 (decoder), l1 0.1 -> 1e-4 (with our per-clip sums 0.1 dominates the loss at this size),
+        generation_weight 0 -> 1 (Algorithm 1's path trained too: lesson 02 measures why)."""
         return cls(**{"enc_channels": 32, "latent_dim": 64, "control_channels": 32, "control_hidden": 64,
-                      "dec_channels": 64, "l1": 1e-4, **overrides})
+                      "dec_channels": 64, "l1": 1e-4, "generation_weight": 1.0, **overrides})
 
     def __post_init__(self):
         sizes = (self.pose_dim, self.control_dim, self.enc_channels, self.latent_dim, self.control_channels,
