@@ -119,6 +119,41 @@ def _generate_actions():
     return lambda: [generate_action(subject, a, seed=next(seeds)) for a in ("jump", "lift")][-1]
 
 
+MOGLOW_BATCH = (64, 100)  # sequences x generated frames of the batched MoGlow benchmark
+
+
+def _moglow_model():
+    """The shipped lesson-06 model, else an untrained one of the same size (same cost): (model, tau, D)."""
+    import torch
+
+    from course_lib.experiments.moglow import CHECKPOINTS, TAU, load_model
+    from course_lib.models.moglow import MoGlow, MoGlowConfig
+
+    torch.manual_seed(0)
+    path = CHECKPOINTS / "moglow.pt"
+    model = load_model("moglow") if path.exists() else MoGlow(MoGlowConfig.cpu(61, 3, TAU)).eval()
+    return model, model.config.tau, model.config.pose_dim
+
+
+@register("moglow sample batched 64 x 100 frames (frames/s = 6400000 / ms)")
+def _moglow_batched():
+    import torch
+
+    model, tau, D = _moglow_model()
+    N, T = MOGLOW_BATCH
+    x0, c = torch.zeros(N, tau, D), torch.zeros(N, tau + T, 3)
+    return lambda: model.sample(c, x0, temperature=1.0)
+
+
+@register("moglow stream one frame, batch 1 (frames/s = 1000 / ms)")
+def _moglow_stream():
+    import torch
+
+    model, tau, D = _moglow_model()
+    stream, c = model.stream(torch.zeros(1, tau, D), torch.zeros(1, tau, 3)), torch.zeros(1, 3)
+    return lambda: stream.step(c)
+
+
 def run(only: str | None = None, repeat: int = 20) -> str:
     """-> Markdown table of the selected benchmarks (name contains `only`): median and min ms."""
     import torch

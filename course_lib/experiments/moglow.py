@@ -1,0 +1,424 @@
+"""Lesson 06 experiment: MoGlow (Henter et al. 2019) on the course's locomotion data, its variants and baselines.
+
+    python -m course_lib.reproduce moglow              # data, train 4 models -> checkpoints, evaluation -> manifest
+    python -m course_lib.reproduce moglow --eval-only  # the evaluation from checkpoints/moglow*.pt
+
+Data as sec. 5.1: the locomotion dataset (1800 clips of 4 s, 45 subjects) at 20 fps in
+``positions_control`` -- 21 joint positions in the floor-projected root frame (63) as the output
+x_t and (forward velocity, sideways velocity, yaw rate) as the control c_t (the paper's per-frame
+displacements times fps: the same after standardisation) -- standardised with the training split's
+statistics, mirrored and time-reversed (4x the clips), one 4-s window (80 frames) per clip, tau = 10.
+The Hips' floor-frame x and z are 0 by construction: these two fixed values are not modelled
+(a density on a constant is infinite) and are restored on output, so the flow sees D = 61.
+Split by subject (`split_by_subject`, seed 0): 80 % train, 10 % validation, 10 % held out.
+
+Models (all `MoGlowConfig.cpu()`, same optimiser, steps and seed):
+``moglow`` (LSTM, autoregressive dropout 0.95), ``moglow_nodrop`` (dropout 0), ``moglow_markov``
+(feed-forward conditioning, dropout 0.95), ``moglow_gaussian`` (conditional diagonal Gaussian with
+the LSTM conditioning, dropout 0.95).
+
+Evaluation (`eval_moglow`): held-out NLL per frame; invertibility on held-out windows; control
+consistency under a zero and a walking control; 20-s samples against lesson 03's freeze floor;
+foot skate, jitter, FID and C2ST against held-out mocap, driven by the mocap's own controls.
+FID and C2ST need rotations: samples and mocap alike go positions -> rotations through
+`representations.motion_from_positions` (no bone twist is observable from positions), so both sets
+lose the same information.  Nothing runs at import time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from course_lib.reproduce import rounded
+
+ROOT = Path(__file__).resolve().parents[2]
+CHECKPOINTS = ROOT / "checkpoints"
+COMMAND = "python -m course_lib.reproduce moglow"
+FPS = 20.0  # sec. 5.1: 120 -> 20 fps
+WINDOW = 80  # frames per training window (4 s)
+TAU = 10  # history frames (0.5 s)
+STEPS = 2000  # optimiser steps per model (~11 epochs of the 5920 augmented training windows)
+BATCH = 32
+LR = 1e-3  # the paper: 1e-4 with a Noam schedule over 80k steps; ours is a short run
+GRAD_CLIP = 5.0  # StyleGestures' max_grad_clip
+EVAL_SEEDS = 3  # generation seeds of the distribution scores
+MIN_DISTRIBUTION_CLIPS = 20  # FID / C2ST need at least this many held-out clips
+MODELS = {"moglow": {}, "moglow_nodrop": {"dropout": 0.0}, "moglow_markov": {"conditioner": "markov"},
+          "moglow_gaussian": {"next_step": "gaussian"}}
+LABELS = {"moglow": "MoGlow (LSTM, dropout 0.95)", "moglow_nodrop": "MoGlow, no dropout",
+          "moglow_markov": "Markov (MLP), dropout 0.95", "moglow_gaussian": "Gaussian (LSTM), dropout 0.95"}
+
+
+# ----------------------------------------------------------------------------- data
+
+
+@dataclasses.dataclass
+class MoGlowData:
+    """Standardised tensors: poses (N, T, D) without the fixed values, controls (N, T, 3), and what maps back."""
+
+    train: dict
+    val: dict
+    test: dict
+    stats: tuple  # (mean, std) of the 66 positions_control features (training split, augmented)
+    fixed: np.ndarray  # (63,) bool: pose features not modelled (the Hips' floor-frame x, z)
+    test_clips: list  # the held-out Motions at 20 fps, in the order of test["poses"]
+
+    @property
+    def pose_dim(self) -> int:
+        return int((~self.fixed).sum())
+
+    def features(self, poses: torch.Tensor, controls: torch.Tensor) -> np.ndarray:
+        """Standardised (N, T, D), (N, T, 3) -> raw positions_control features (N, T, 66) (fixed values restored)."""
+        mean, std = self.stats
+        N, T = poses.shape[:2]
+        out = np.empty((N, T, len(mean)))
+        out[..., :63][..., ~self.fixed] = poses.double().numpy()
+        out[..., :63][..., self.fixed] = 0.0
+        out[..., 63:] = controls.double().numpy()
+        return out * std + mean
+
+    def positions(self, poses: torch.Tensor, controls: torch.Tensor, starts=None) -> np.ndarray:
+        """-> world joint positions (N, T, 21, 3), the control integrated to a root path from `starts`."""
+        from course_lib.representations import decode_positions
+
+        feats = self.features(poses, controls)
+        starts = starts or [(0.0, 0.0, 0.0)] * len(feats)
+        return np.stack([decode_positions(f, FPS, s) for f, s in zip(feats, starts, strict=True)])
+
+
+def _tensors(ds, fixed: np.ndarray) -> dict:
+    x = torch.stack([ds[i]["x"] for i in range(len(ds))])  # (N, T, 66) standardised
+    keep = torch.from_numpy(np.concatenate((~fixed, np.zeros(3, bool))))
+    return {"poses": x[..., keep].contiguous(), "controls": x[..., 63:].contiguous()}
+
+
+def load_data(mode: str | None = "full", seed: int = 0) -> MoGlowData:
+    """The locomotion clips at 20 fps, split by subject; train mirrored + time-reversed (sec. 5.1)."""
+    from course_lib.datasets import FixedDofs, WindowDataset, load_dataset, split_by_subject
+
+    clips = load_dataset("locomotion", mode=mode, fps=FPS)
+    train, val, test = split_by_subject(clips, (0.8, 0.1, 0.1), seed=seed)
+    ds = WindowDataset(train, "positions_control", WINDOW, fps=FPS, mirror=True, reverse=True)
+    fixed = FixedDofs.from_stats(*ds.stats).mask[:63]
+    held = WindowDataset(test, "positions_control", WINDOW, fps=FPS, stats=ds.stats)
+    validation = WindowDataset(val, "positions_control", WINDOW, fps=FPS, stats=ds.stats)
+    clips_test = [held.clips[c] for c, _ in held.index]
+    return MoGlowData(_tensors(ds, fixed), _tensors(validation, fixed), _tensors(held, fixed), ds.stats, fixed,
+                      clips_test)
+
+
+def batches(data: dict, batch: int, seed: int):
+    """An endless iterator of random batches {"poses", "controls"}."""
+    gen = torch.Generator().manual_seed(seed)
+    n = len(data["poses"])
+    while True:
+        for idx in torch.randperm(n, generator=gen).split(batch):
+            if len(idx) == batch:
+                yield {"poses": data["poses"][idx], "controls": data["controls"][idx]}
+
+
+# ----------------------------------------------------------------------------- training and checkpoints
+
+
+def config_for(name: str, pose_dim: int):
+    from course_lib.models.moglow import MoGlowConfig
+
+    return MoGlowConfig.cpu(pose_dim, 3, TAU, **MODELS[name])
+
+
+def train_model(name: str, data: MoGlowData, steps: int = STEPS, seed: int = 0, progress: bool = False):
+    """-> (model, History) of one variant."""
+    from course_lib.models.moglow import MoGlow
+    from course_lib.training import fit, seed_everything
+
+    seed_everything(seed)
+    model = MoGlow(config_for(name, data.pose_dim))
+    hist = fit(model, batches(data.train, BATCH, seed), steps=steps, lr=LR, grad_clip=GRAD_CLIP,
+               progress=progress, desc=name)
+    return model.eval(), hist
+
+
+def load_model(name: str, checkpoints: Path = CHECKPOINTS):
+    from course_lib.models.moglow import MoGlow, MoGlowConfig
+    from course_lib.training import load_checkpoint
+
+    return load_checkpoint(checkpoints / f"{name}.pt", MoGlow, MoGlowConfig).eval()
+
+
+def stats_file(checkpoints: Path = CHECKPOINTS) -> Path:
+    return checkpoints / "moglow_stats.npz"
+
+
+def save_stats(data: MoGlowData, checkpoints: Path = CHECKPOINTS) -> Path:
+    from course_lib.datasets import write_npz
+
+    return write_npz({"mean": data.stats[0], "std": data.stats[1]}, stats_file(checkpoints), overwrite=True)
+
+
+# ----------------------------------------------------------------------------- measures
+
+
+@torch.no_grad()
+def nll_per_frame(model, data: dict, batch: int = 64) -> float:
+    """Held-out negative log-likelihood, nats per frame (the standardised 61-D pose, frames after tau)."""
+    total, frames = 0.0, 0
+    for i in range(0, len(data["poses"]), batch):
+        p, c = data["poses"][i:i + batch], data["controls"][i:i + batch]
+        total -= model.log_prob(p, c).sum().item()
+        frames += p.shape[0] * (p.shape[1] - model.config.tau)
+    return total / frames
+
+
+@torch.no_grad()
+def round_trip_error(model, data: dict, n: int = 64) -> float:
+    """max |decode(encode(x)) - x| over n held-out windows (float32, standardised units)."""
+    p, c = data["poses"][:n], data["controls"][:n]
+    z, _ = model.encode(p, c)
+    return float((model.decode(z, p[:, :model.config.tau], c) - p).abs().max())
+
+
+def constant_control(data: MoGlowData, n: int, frames: int, forward: float = 0.0, sideways: float = 0.0,
+                     yaw_rate: float = 0.0) -> torch.Tensor:
+    """A constant raw control (m/s, m/s, rad/s) for n sequences of `frames` -> standardised (n, frames, 3)."""
+    mean, std = data.stats[0][63:], data.stats[1][63:]
+    c = (np.array([forward, sideways, yaw_rate]) - mean) / std
+    return torch.from_numpy(c).float().expand(n, frames, 3).contiguous()
+
+
+def start_frames(data: MoGlowData, n: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The first tau poses and controls of n held-out windows (seeded choice, with replacement)."""
+    idx = torch.randint(len(data.test["poses"]), (n,), generator=torch.Generator().manual_seed(seed))
+    return data.test["poses"][idx, :TAU], data.test["controls"][idx, :TAU]
+
+
+def generate(model, data: MoGlowData, controls: torch.Tensor, seed: int, temperature: float = 1.0,
+             starts: torch.Tensor | None = None) -> torch.Tensor:
+    """controls (N, T, 3) from frame tau on -> standardised poses (N, T, D) from held-out starting poses."""
+    x0, c0 = starts if starts is not None else start_frames(data, len(controls), seed)
+    controls = torch.cat((c0, controls[:, TAU:]), 1)
+    return model.sample(controls, x0, temperature, generator=torch.Generator().manual_seed(seed)), controls
+
+
+def foot_speed(positions_local: np.ndarray) -> float:
+    """Floor-frame positions (N, T, 21, 3) -> mean horizontal speed of the four foot joints in the root frame, m/s."""
+    from course_lib.skeleton import Skeleton
+
+    feet = list(Skeleton.canonical().feet)
+    v = np.linalg.norm(np.diff(positions_local[:, :, feet][..., [0, 2]], axis=1), axis=-1) * FPS
+    return float(v.mean())
+
+
+def local_positions(data: MoGlowData, poses: torch.Tensor, controls: torch.Tensor) -> np.ndarray:
+    return data.features(poses, controls)[..., :63].reshape(*poses.shape[:2], 21, 3)
+
+
+def stride_frequency(positions_local: np.ndarray, lo: float = 0.3, hi: float = 3.0) -> np.ndarray:
+    """Floor-frame positions (N, T, 21, 3) -> (N,) stride frequency (cycles/s) = the peak of a fine-grid
+    periodogram of the feet's forward separation z_left - z_right (one period = one stride = two steps)."""
+    from course_lib.skeleton import Skeleton
+
+    sk = Skeleton.canonical()
+    s = positions_local[:, :, sk.index("LeftFoot"), 2] - positions_local[:, :, sk.index("RightFoot"), 2]
+    s = s - s.mean(1, keepdims=True)
+    t = np.arange(s.shape[1]) / FPS
+    freqs = np.arange(lo, hi, 0.005)
+    basis = np.exp(-2j * np.pi * freqs[:, None] * t[None])  # (F, T)
+    power = np.abs(s @ basis.T) ** 2  # (N, F)
+    return freqs[power.argmax(1)]
+
+
+def data_gait(data: MoGlowData, speed: float, tol: float = 0.15) -> dict:
+    """The held-out clips walking steadily at speed +- tol m/s: cadence (steps/s) and stride (m) by the same
+    estimator as the samples, and the generator's own cadence (clip meta) as a check of the estimator."""
+    clips = [m for m in data.test_clips if m.action == "walk"]
+    rows = []
+    for m in clips:
+        v = np.asarray(m.meta["speed"], float)
+        if abs(v.mean() - speed) < tol and v.std() < tol and not m.meta.get("mirrored"):
+            rows.append((m, v.mean(), float(np.mean(m.meta["cadence"]))))
+    if not rows:
+        return {"clips": 0}
+    from course_lib.representations import encode_positions_control
+
+    local = np.stack([encode_positions_control(m)[:, :63].reshape(-1, 21, 3) for m, _, _ in rows])
+    f = stride_frequency(local)
+    v = np.array([r[1] for r in rows])
+    return {"clips": len(rows), "cadence": float(np.median(2 * f)), "stride_m": float(np.median(v / f)),
+            "cadence_generator": float(np.median([r[2] for r in rows])), "speed": float(v.mean())}
+
+
+def control_consistency(models: dict, data: MoGlowData, seed: int, n: int = 32) -> dict:
+    """Zero control for 10 s: feet speed in the root frame; walking control: cadence and stride vs the data."""
+    speed = float(np.median([np.mean(m.meta["speed"]) for m in data.test_clips if m.action == "walk"]))
+    ref = data_gait(data, speed)
+    out = {"walk_speed": speed, "data": ref, "models": {}}
+    T = TAU + int(10 * FPS)
+    for name, model in models.items():
+        poses, ctl = generate(model, data, constant_control(data, n, T), seed)
+        still = foot_speed(local_positions(data, poses[:, TAU:], ctl[:, TAU:]))
+        poses, ctl = generate(model, data, constant_control(data, n, T, forward=speed), seed)
+        f = stride_frequency(local_positions(data, poses[:, TAU + 40:], ctl[:, TAU + 40:]))  # the last 8 s
+        row = {"zero_control_feet_speed": still, "walk_cadence": float(np.median(2 * f)),
+               "walk_stride_m": float(np.median(speed / f))}
+        if ref.get("clips"):
+            row["cadence_ratio"] = row["walk_cadence"] / ref["cadence"]
+            row["stride_ratio"] = row["walk_stride_m"] / ref["stride_m"]
+        out["models"][name] = row
+    if "moglow" in out["models"] and "moglow_nodrop" in out["models"]:
+        out["zero_control_ratio"] = (out["models"]["moglow"]["zero_control_feet_speed"]
+                                     / out["models"]["moglow_nodrop"]["zero_control_feet_speed"])
+    return out
+
+
+def long_samples(models: dict, data: MoGlowData, seed: int, n: int = 16, seconds: float = 20.0) -> dict:
+    """20-s samples under the held-out clips' controls (5 clips back to back): joint-speed variance of the
+    last 5 s against lesson 03's freeze floor (a tenth of the least-varying mocap clip's variance)."""
+    from course_lib.experiments.gmm_rnn import freeze_floor, joint_speed
+
+    floor = freeze_floor(data.test_clips)
+    k = int(np.ceil(seconds * FPS / (WINDOW - TAU)))
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(0, len(data.test["controls"]), size=(n, k))
+    ctl = torch.cat([data.test["controls"][pick[:, j], TAU:] for j in range(k)], 1)[:, : int(seconds * FPS)]
+    ctl = torch.cat((torch.zeros(n, TAU, 3), ctl), 1)
+    out = {"freeze_floor": floor, "seconds": seconds, "models": {}}
+    for name, model in models.items():
+        poses, c = generate(model, data, ctl, seed)
+        pos = data.positions(poses, c)
+        var = joint_speed(pos[:, -int(5 * FPS):], FPS).var(-1)  # (n,)
+        out["models"][name] = {"min_speed_var": float(var.min()), "median_speed_var": float(np.median(var)),
+                               "frozen": int((var < floor).sum()), "n": n,
+                               "finite": bool(np.isfinite(pos).all())}
+    return out
+
+
+def to_motions(positions: np.ndarray, clips: list) -> list:
+    """World positions (N, T, 21, 3) -> Motions on each clip's skeleton (rotations fitted, no twist)."""
+    from course_lib.representations import motion_from_positions
+
+    return [motion_from_positions(p, m.skeleton, FPS) for p, m in zip(positions, clips, strict=True)]
+
+
+def quality(models: dict, data: MoGlowData, seed: int) -> dict:
+    """Samples driven by every held-out clip's control from its first tau frames, the control integrated to
+    a root path from the clip's start: foot skate (m/s), jitter (m/s^3), FID and C2ST (shared classifiers)."""
+    from course_lib.evaluation import c2st, fid, foot_skate, jitter, load_classifier
+    from course_lib.representations import root_start
+
+    clf = load_classifier("action")
+    starts = [root_start(m) for m in data.test_clips]
+    real_pos = data.positions(data.test["poses"], data.test["controls"], starts)
+    real = to_motions(real_pos, data.test_clips)
+    if len(real) < MIN_DISTRIBUTION_CLIPS:
+        raise ValueError(f"quality: FID/C2ST need >= {MIN_DISTRIBUTION_CLIPS} held-out clips, got {len(real)} "
+                         "(CI's tiny data: use the recorded results)")
+    half = np.random.default_rng(seed).permutation(len(real))
+    a, b = [real[i] for i in half[: len(real) // 2]], [real[i] for i in half[len(real) // 2:]]
+    rows = {"Mocap (half vs half)": {"foot_skate": foot_skate(b), "jitter": jitter(b), "FID": fid(a, b, clf),
+                                     "C2ST": c2st(a, b, seed=seed)["accuracy"]},
+            "Mocap (native rotations)": {"FID": fid(real, data.test_clips, clf),
+                                         "foot_skate": foot_skate(data.test_clips),
+                                         "jitter": jitter(data.test_clips)}}
+    x0, c0 = data.test["poses"][:, :TAU], data.test["controls"][:, :TAU]
+    for name, model in models.items():
+        poses, c = generate(model, data, data.test["controls"], seed, starts=(x0, c0))
+        gen = to_motions(data.positions(poses, c, starts), data.test_clips)
+        test = c2st(real, gen, seed=seed)
+        rows[name] = {"foot_skate": foot_skate(gen), "jitter": jitter(gen), "FID": fid(real, gen, clf),
+                      "C2ST": test["accuracy"], "C2ST_low": test["ci_low"], "C2ST_high": test["ci_high"]}
+    return rows
+
+
+def over_seeds(per_seed: list[dict]):
+    """Nested dicts of numbers, one per seed -> (mean, sd) of the same shape (bools/ints averaged too)."""
+    first = per_seed[0]
+    if isinstance(first, dict):
+        pairs = {k: over_seeds([r[k] for r in per_seed]) for k in first}
+        return {k: m for k, (m, _) in pairs.items()}, {k: s for k, (_, s) in pairs.items()}
+    v = np.array(per_seed, dtype=float)
+    return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0
+
+
+def evaluate(models: dict, data: MoGlowData, seed: int = 0, seeds: int = EVAL_SEEDS) -> dict:
+    """Every must-show measure of lesson 06 -> JSON-able dict."""
+    out = {"nll_per_frame": {name: nll_per_frame(m, data.test) for name, m in models.items()},
+           "val_nll_per_frame": {name: nll_per_frame(m, data.val) for name, m in models.items()},
+           "round_trip_max_error": {name: round_trip_error(m, data.test) for name, m in models.items()},
+           "control": control_consistency(models, data, seed),
+           "long": long_samples(models, data, seed)}
+    if len(data.test_clips) >= MIN_DISTRIBUTION_CLIPS:
+        runs = [quality(models, data, s) for s in range(seed, seed + seeds)]
+        out["quality"], out["quality_sd"] = over_seeds(runs)
+        out["generation_seeds"] = list(range(seed, seed + seeds))
+    out["counts"] = {"train": len(data.train["poses"]), "val": len(data.val["poses"]),
+                     "test": len(data.test["poses"]), "pose_dim": data.pose_dim}
+    return out
+
+
+# ----------------------------------------------------------------------------- the commands
+
+
+def eval_moglow(seed: int = 0, checkpoints: Path = CHECKPOINTS, mode: str | None = "full", models=None) -> dict:
+    """The evaluation from the shipped checkpoints (or the given models)."""
+    t0 = time.perf_counter()
+    data = load_data(mode)
+    models = models or {name: load_model(name, checkpoints) for name in MODELS}
+    out = evaluate(models, data, seed)
+    out["eval_seconds"] = round(time.perf_counter() - t0, 1)
+    return rounded(out, 5)
+
+
+def train_moglow(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS, mode: str | None = "full",
+                 steps: int = STEPS, progress: bool = False) -> dict:
+    """Train every variant (or those in `only`), save checkpoints + stats, evaluate, record in the manifest."""
+    from course_lib.training import save_checkpoint
+
+    t0 = time.perf_counter()
+    data = load_data(mode, seed)
+    save_stats(data, checkpoints)
+    timings = {}
+    for name in MODELS:
+        if only and name not in only:
+            continue
+        model, hist = train_model(name, data, steps, seed, progress)
+        timings[name] = round(hist.seconds, 1)
+        curve = list(hist.step["loss"])
+        save_checkpoint(model, model.config, checkpoints / f"{name}.pt", command=COMMAND, overwrite=True,
+                        metrics={"train_seconds": timings[name], "steps": len(curve), "batch": BATCH, "lr": LR,
+                                 "final_nll_frame": round(hist.final("loss", 50), 4), "train_seed": seed,
+                                 "train_sequences": len(data.train["poses"]),
+                                 "curve": [round(float(v), 3) for v in curve[:: max(1, len(curve) // 150)]]})
+        print(f"{name}: {hist}", file=sys.stderr)
+    out = eval_moglow(seed, checkpoints, mode)
+    out["train_seconds"] = timings
+    out["total_seconds"] = round(time.perf_counter() - t0, 1)
+    record_results(out, checkpoints)
+    return out
+
+
+def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
+    """Store the evaluation in the main model's manifest entry (``metrics["results"]``)."""
+    from course_lib.training import save_checkpoint
+
+    entry = json.loads((checkpoints / "MANIFEST.json").read_text())["moglow"]
+    model = load_model("moglow", checkpoints)
+    metrics = {**entry["metrics"], "results": results}
+    return save_checkpoint(model, model.config, checkpoints / "moglow.pt", command=entry["command"],
+                           metrics=metrics, overwrite=True)
+
+
+def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
+    """The evaluation stored by `record_results`."""
+    return json.loads((checkpoints / "MANIFEST.json").read_text())["moglow"]["metrics"]["results"]
+
+
+def training_curve(name: str, checkpoints: Path = CHECKPOINTS) -> list[float]:
+    """The recorded training curve (NLL per frame, every ~1/150 of the run) of a shipped model."""
+    return json.loads((checkpoints / "MANIFEST.json").read_text())[name]["metrics"]["curve"]

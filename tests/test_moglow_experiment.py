@@ -1,0 +1,75 @@
+"""Lesson 06's experiment (course_lib/experiments/moglow.py): data, measures with known answers, registry."""
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.experiments import moglow as E
+
+torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module")
+def data():
+    return E.load_data("ci")
+
+
+def test_data_is_sec_5_1(data):
+    assert data.train["poses"].shape[1:] == (E.WINDOW, 61) and data.train["controls"].shape[-1] == 3
+    assert data.fixed.sum() == 2 and data.pose_dim == 61  # the Hips' floor-frame x and z are not modelled
+    # mirrored + time-reversed: 4x the training clips; standardised with the training split's stats
+    assert len(data.train["poses"]) % 4 == 0
+    assert data.train["poses"].mean().abs() < 0.05 and abs(data.train["poses"].std() - 1) < 0.05
+
+
+def test_features_back_to_the_clips_positions(data):
+    from course_lib.representations import root_start
+
+    m = data.test_clips[0]
+    pos = data.positions(data.test["poses"][:1], data.test["controls"][:1], [root_start(m)])[0]
+    np.testing.assert_allclose(pos, m.positions()[: E.WINDOW], atol=1e-4)
+
+
+def test_stride_frequency_known_answer():
+    t = np.arange(200) / E.FPS
+    local = np.zeros((2, 200, 21, 3))
+    from course_lib.skeleton import Skeleton
+
+    sk = Skeleton.canonical()
+    for i, f in enumerate((0.9, 1.4)):
+        local[i, :, sk.index("LeftFoot"), 2] = 0.3 * np.sin(2 * np.pi * f * t)
+        local[i, :, sk.index("RightFoot"), 2] = -0.3 * np.sin(2 * np.pi * f * t)
+    np.testing.assert_allclose(E.stride_frequency(local), [0.9, 1.4], atol=0.01)
+
+
+def test_data_cadence_estimator_agrees_with_the_generator():
+    """On the data, the estimator's cadence is within 5 % of the generator's own (clip meta)."""
+    from types import SimpleNamespace
+
+    from course_lib.datasets import load_dataset
+
+    d = SimpleNamespace(test_clips=load_dataset("locomotion", mode="ci", fps=E.FPS))
+    speed = float(np.median([np.mean(m.meta["speed"]) for m in d.test_clips if m.action == "walk"]))
+    ref = E.data_gait(d, speed, tol=0.3)
+    assert ref["clips"] >= 1
+    assert abs(ref["cadence"] / ref["cadence_generator"] - 1) < 0.05
+
+
+def test_constant_control_and_foot_speed(data):
+    c = E.constant_control(data, 2, 5, forward=1.2)
+    raw = c.double().numpy() * data.stats[1][63:] + data.stats[0][63:]
+    np.testing.assert_allclose(raw[..., 0], 1.2, atol=1e-5)
+    np.testing.assert_allclose(raw[..., 1:], 0.0, atol=1e-5)
+    still = np.zeros((1, 10, 21, 3))
+    assert E.foot_speed(still) == 0.0
+    moving = still.copy()
+    moving[..., 2] = np.arange(10)[None, :, None] * 0.1  # every joint 0.1 m forward per frame
+    assert abs(E.foot_speed(moving) - 0.1 * E.FPS) < 1e-9
+
+
+def test_registered_in_reproduce():
+    from course_lib.reproduce import EXPERIMENTS
+
+    assert "moglow" in EXPERIMENTS
+    train, evaluate = EXPERIMENTS["moglow"]
+    assert train.__name__ == "train_moglow" and evaluate.__name__ == "eval_moglow"
