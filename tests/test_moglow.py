@@ -226,3 +226,17 @@ def test_cpu_preset_and_step_api():
     x, h = torch.randn(3, 5, dtype=torch.float64), torch.randn(3, 2, dtype=torch.float64)
     y, ld = step(x, h)
     np.testing.assert_allclose(step.inverse(y, h).detach().numpy(), x.numpy(), atol=1e-12)
+
+
+def test_lesson_solutions_pass_and_wrong_answers_fail():
+    from course_lib.solutions import moglow as S
+
+    S.check_actnorm_init(S.actnorm_init)
+    S.check_coupling_inverse(S.coupling_inverse)
+    S.check_log_prob(S.log_prob)
+    with pytest.raises(AssertionError, match="log-scale"):
+        S.check_actnorm_init(lambda x: (-x.mean(0), 1 / x.std(0)))
+    with pytest.raises(AssertionError, match="invert"):
+        S.check_coupling_inverse(lambda y, ls, t: y * torch.exp(-ls) + t)
+    with pytest.raises(AssertionError, match="nats"):
+        S.check_log_prob(lambda m, p, c: S.log_prob(m, p, c) - 0.5)

@@ -1,0 +1,85 @@
+"""Reference answers and self-checks for the exercises of notebooks/06_moglow.ipynb.
+
+Students write their own version in the notebook; each ``check_*`` runs it on fixed inputs and
+compares it with the library (course_lib.models.moglow), raising an AssertionError that says what
+is wrong.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from course_lib.models.moglow import ActNorm, AffineCoupling, MoGlow, MoGlowConfig
+
+__all__ = ["actnorm_init", "check_actnorm_init", "check_coupling_inverse", "check_log_prob", "coupling_inverse",
+           "log_prob"]
+
+
+# ----------------------------------------------------------------------------- reference answers
+
+
+def actnorm_init(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """x (N, D) first batch -> (b, s) with exp(s) (x + b) of zero mean and unit std per feature."""
+    return -x.mean(0), -torch.log(x.std(0) + 1e-6)
+
+
+def coupling_inverse(y_b: torch.Tensor, log_sigma: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+    """Invert y_b = sigma (x_b + t)  -- eq. (6): x_b = y_b / sigma - t."""
+    return y_b * torch.exp(-log_sigma) - t
+
+
+def log_prob(model: MoGlow, poses: torch.Tensor, controls: torch.Tensor) -> torch.Tensor:
+    """log p = sum_t log N(z_t; 0, I) + log|det dz/dx|  -- eq. (5), from model.encode."""
+    z, log_det = model.encode(poses, controls)
+    return (-0.5 * z ** 2 - 0.5 * math.log(2 * math.pi)).sum((1, 2)) + log_det
+
+
+# ----------------------------------------------------------------------------- checks
+
+
+def _data(seed: int = 0, n: int = 64, d: int = 6):
+    g = torch.Generator().manual_seed(seed)
+    return 3.0 * torch.randn(n, d, generator=g, dtype=torch.float64) + 5.0
+
+
+def check_actnorm_init(fn) -> None:
+    """fn(x (N, D)) -> (b, s): compared with ActNorm's data-dependent initialisation."""
+    x = _data()
+    norm = ActNorm(6).double()
+    norm(x)  # the first batch initialises it
+    b, s = fn(x)
+    assert tuple(b.shape) == (6,) and tuple(s.shape) == (6,), f"expected b, s of shape (6,), got {b.shape}, {s.shape}"
+    assert torch.allclose(b, norm.bias, atol=1e-6), "b should be minus the per-feature mean of x"
+    assert torch.allclose(s, norm.log_scale, atol=1e-4), ("s is a log-scale: exp(s) = 1 / std, so s = -log std "
+                                                          "(did you return the scale instead of its log?)")
+
+
+def check_coupling_inverse(fn) -> None:
+    """fn(y_b, log_sigma, t) -> x_b: must undo AffineCoupling's forward pass."""
+    torch.manual_seed(0)
+    coupling = AffineCoupling(6, 2, 8).double()
+    with torch.no_grad():
+        for p in coupling.parameters():
+            p.add_(0.3 * torch.randn_like(p))
+    x, h = _data(1, 16), torch.randn(16, 2, dtype=torch.float64)
+    y, _ = coupling(x, h)
+    log_sigma, t = coupling.scale_and_shift(y[:, :3], h)  # the NN sees y_a = x_a
+    x_b = fn(y[:, 3:], log_sigma, t)
+    err = (x_b - x[:, 3:]).abs().max().item()
+    assert err < 1e-8, f"x_b differs from the input by up to {err:.3g}: invert y_b = sigma * (x_b + t) step by step"
+
+
+def check_log_prob(fn) -> None:
+    """fn(model, poses, controls) -> (N,) log-likelihoods: compared with MoGlow.log_prob."""
+    torch.manual_seed(0)
+    model = MoGlow(MoGlowConfig(6, 3, 3, steps=2, hidden=8, layers=1, coupling_hidden=8)).double().eval()
+    g = torch.Generator().manual_seed(2)
+    poses = torch.randn(3, 9, 6, generator=g, dtype=torch.float64)
+    controls = torch.randn(3, 9, 3, generator=g, dtype=torch.float64)
+    got, want = fn(model, poses, controls), model.log_prob(poses, controls)
+    assert tuple(got.shape) == (3,), f"expected one log-likelihood per sequence, shape (3,), got {tuple(got.shape)}"
+    diff = (got - want).abs().max().item()
+    assert diff < 1e-8, (f"off by up to {diff:.3g} nats: sum the standard-normal log-density of every z value "
+                         "(with its -0.5 log 2 pi) over frames and features, then add log_det")
