@@ -117,3 +117,19 @@ def test_diversity_of_copies_is_zero_and_counts_recognised_clips(held_out):
     assert d["apd"] == pytest.approx(0.0, abs=1e-12) and d["recognised"] == 1.0
     walked = diversity([m for m in held_out if m.action == "walk"][:4], load_classifier("action"))
     assert walked["travel"] > 1.0 > d["travel"]  # walks leave their start, a jump lands near it
+
+
+def test_nearest_distance_known_answers(held_out):
+    import dataclasses
+
+    from course_lib.experiments.hvrnn import nearest_distance
+
+    subjects = sorted({m.subject for m in held_out})  # one jump per subject, 2 s of each (their lengths differ)
+    jumps = [next(m for m in held_out if m.subject == s and m.action == "jump")[:60] for s in subjects]
+    twin = [dataclasses.replace(m, subject="other") for m in jumps]
+    assert nearest_distance(jumps, twin) == pytest.approx(0.0, abs=1e-12)  # each clip's twin is in the reference
+    own = nearest_distance(jumps, jumps)  # its own subject's clips are skipped: another subject's jump is nearest
+    assert 0.005 < own < 0.2
+    assert nearest_distance(turn_joints(jumps, 20), twin) > nearest_distance(turn_joints(jumps, 5), twin)
+    with pytest.raises(ValueError, match="another subject"):
+        nearest_distance(jumps[:1], jumps[:1])

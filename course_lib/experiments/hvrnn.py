@@ -353,19 +353,50 @@ def joint_errors(model, data: dict, seed: int = 0) -> np.ndarray:
     return torch.rad2deg(quat_geodesic(q.double(), q_hat.double(), "d1")).mean((0, 1)).numpy()
 
 
-def diversity(motions: list[Motion], classifier) -> dict:
-    """Clips of one requested action -> {"apd": APD of root-relative positions (m), "recognised": fraction the
-    action classifier labels as that action, "apd_recognised": the APD of those alone, "travel": mean
-    floor distance of the root from first to last frame (m)}.  An APD above real data's is no virtue when
-    the extra spread is motion of another kind."""
-    from course_lib.evaluation import apd, classifier_features, motions_to_batch
+def _facing_positions(motions: list[Motion]) -> np.ndarray:
+    """-> root-relative joint positions with each frame's heading turned to +Z (the pose alone), (N, T, J, 3)."""
+    from course_lib.representations import root_yaw_pitch_roll
 
     pos = _positions(motions)
+    yaw = np.stack([root_yaw_pitch_roll(m)[:, 0] for m in motions])[..., None]  # (N, T, 1)
+    c, s = np.cos(-yaw), np.sin(-yaw)  # a turn about +Y by -yaw
+    return np.stack([c * pos[..., 0] + s * pos[..., 2], pos[..., 1], -s * pos[..., 0] + c * pos[..., 2]], -1)
+
+
+def nearest_distance(motions: list[Motion], reference: list[Motion]) -> float:
+    """Mean over `motions` of the distance (APD's: mean over frames and joints, facing positions, m) to the
+    nearest clip of `reference` -- how far samples stray from real ones.  Reference clips of a clip's own
+    subject (itself, its mirrored copy) are skipped, so that real data against itself is a fair floor."""
+    a, b = _facing_positions(motions), _facing_positions(reference)
+    d = np.stack([np.linalg.norm(x[None] - b, axis=-1).mean(axis=(1, 2)) for x in a])  # (N, M)
+    same = np.array([[x.subject is not None and x.subject == y.subject for y in reference] for x in motions])
+    if same.all(1).any():
+        raise ValueError("nearest_distance: a clip has no reference clip of another subject")
+    return float(np.where(same, np.inf, d).min(1).mean())
+
+
+def diversity(motions: list[Motion], classifier, reference: list[Motion] | None = None) -> dict:
+    """Clips of one requested action -> {"apd": APD of root-relative positions (m), "apd_facing": the same with
+    each frame's heading removed (the pose alone), "recognised": fraction the action classifier labels as that
+    action, "travel": mean floor distance of the root from first to last frame (m), "turn": mean change of
+    heading from first to last frame (degrees), and with `reference` (real clips) "nearest_real": the mean
+    distance from each clip to its nearest real one (`nearest_distance`)}.  An APD above real data's is no
+    virtue when the extra spread is motion of another kind (travelling, turning) or away from real motion."""
+    from course_lib.evaluation import apd, classifier_features, motions_to_batch
+    from course_lib.representations import root_yaw_pitch_roll
+
+    yaw = np.stack([root_yaw_pitch_roll(m)[:, 0] for m in motions])  # (N, T)
     probs = classifier_features(motions_to_batch(motions, classifier.config), classifier, kind="proba")
     ok = probs.argmax(1) == np.array([classifier.config.classes.index(m.action) for m in motions])
     root = np.stack([m.root_positions[[0, -1]] for m in motions])  # (N, 2, 3)
-    return {"apd": apd(pos), "recognised": float(ok.mean()), "apd_recognised": apd(pos[ok]) if ok.sum() > 1 else None,
-            "travel": float(np.linalg.norm(root[:, 1, [0, 2]] - root[:, 0, [0, 2]], axis=-1).mean())}
+    turn = np.degrees(np.abs(np.angle(np.exp(1j * (yaw[:, -1] - yaw[:, 0])))))
+    out = {"apd": apd(_positions(motions)), "apd_facing": apd(_facing_positions(motions)),
+           "recognised": float(ok.mean()),
+           "travel": float(np.linalg.norm(root[:, 1, [0, 2]] - root[:, 0, [0, 2]], axis=-1).mean()),
+           "turn": float(turn.mean())}
+    if reference is not None:
+        out["nearest_real"] = nearest_distance(motions, reference)
+    return out
 
 
 def scores(motions: list[Motion], reference: list[Motion], classifiers: dict, seed: int = 0) -> dict:
