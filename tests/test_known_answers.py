@@ -88,8 +88,9 @@ def test_c2st_ranks_a_noise_sweep(held_out, other_real):
 
 
 def test_c2st_rejects_bad_input():
-    with pytest.raises(ValueError, match="at least"):
-        c2st(np.zeros((3, 8)), np.zeros((10, 8)))
+    with pytest.raises(ValueError, match="at least 2"):
+        c2st(np.zeros((1, 8)), np.zeros((10, 8)))
+    assert c2st(np.zeros((3, 8)), np.ones((10, 8)))["accuracy"] == 1.0  # 3 folds of a separable pair
     with pytest.raises(ValueError, match="differ"):
         c2st(np.zeros((10, 8)), np.zeros((10, 9)))
     with pytest.raises(ValueError, match="NaN"):

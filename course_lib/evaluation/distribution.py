@@ -164,7 +164,7 @@ def c2st(real, generated, seed: int = 0, classifiers=None, folds: int = 5, l2: f
     are mapped to the penultimate features of ``classifiers`` side by side (default: the shipped
     action and style classifiers, FID's feature space; 128 values).  Both sets are subsampled to
     the same size n (seeded), so chance is exactly 0.5; a logistic regression trained on the
-    other ``folds - 1`` folds predicts each fold, so every one of the 2n samples is predicted by a
+    other ``folds - 1`` folds (at most n folds) predicts each fold, so every one of the 2n samples is predicted by a
     model that never saw it.  -> {"accuracy": held-out accuracy, "ci_low", "ci_high": its 95 % Wilson
     interval over the 2n predictions, "n": 2n}.  ~0.5: indistinguishable to this test; 1: separable.
     """
@@ -173,11 +173,12 @@ def c2st(real, generated, seed: int = 0, classifiers=None, folds: int = 5, l2: f
     xr, xg = _c2st_features(real, classifiers, "real"), _c2st_features(generated, classifiers, "generated")
     if xr.shape[1] != xg.shape[1]:
         raise ValueError(f"c2st: feature sizes differ ({xr.shape[1]} vs {xg.shape[1]})")
-    if folds < 2 or min(len(xr), len(xg)) < folds:
-        raise ValueError(f"c2st: needs folds >= 2 and at least {max(folds, 2)} samples per set, "
-                         f"got {len(xr)} real and {len(xg)} generated")
-    rng = np.random.default_rng(seed)
     n = min(len(xr), len(xg))
+    if folds < 2 or n < 2:
+        raise ValueError(f"c2st: needs folds >= 2 and at least 2 samples per set, got folds={folds}, "
+                         f"{len(xr)} real and {len(xg)} generated")
+    folds = min(folds, n)  # tiny sets: leave-one-pair-out
+    rng = np.random.default_rng(seed)
     x = np.concatenate([xr[rng.permutation(len(xr))[:n]], xg[rng.permutation(len(xg))[:n]]])
     y = np.r_[np.zeros(n), np.ones(n)]
     fold = np.concatenate([rng.permutation(n) % folds, rng.permutation(n) % folds])  # balanced folds
