@@ -49,6 +49,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from course_lib.datasets import FixedDofs
 from course_lib.motion import Motion
 from course_lib.representations import encode_quaternion_root
 
@@ -107,8 +108,6 @@ class MotionClassifier(nn.Module):
     def set_normalization(self, frames) -> None:
         """Input normalisation from training frames (M, C) (numpy or torch): mean, std floored at
         config.scale_floor, and keep = 0 on the channels the frames never vary (`FixedDofs`)."""
-        from course_lib.datasets import FixedDofs
-
         f = torch.as_tensor(np.asarray(frames, np.float64)).reshape(-1, self.config.in_channels)
         fixed = FixedDofs.detect(f)
         self.mean.copy_(f.mean(0).float())
@@ -117,8 +116,6 @@ class MotionClassifier(nn.Module):
 
     def fixed_dofs(self):
         """The fixed degrees of freedom of the classifier's training data (`FixedDofs`: mask, constants)."""
-        from course_lib.datasets import FixedDofs
-
         return FixedDofs(mask=(self.keep == 0).numpy(), values=self.mean.double().numpy())
 
     def features(self, x: torch.Tensor) -> torch.Tensor:

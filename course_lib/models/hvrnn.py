@@ -45,6 +45,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from course_lib.datasets import FixedDofs
 from course_lib.models.vae import linear_beta
 from course_lib.rotations import matrix_geodesic, quat_geodesic, quat_to_matrix
 from course_lib.skeleton import Skeleton
@@ -250,8 +251,6 @@ class PoseCoding:
         """Root-feature mean/std and the fixed degrees of freedom from training poses x (N, T, D) (or (M, D)),
         and a data-dependent start: the output layer begins at the mean training pose, its weights scaled
         down by 10 (faster early training)."""
-        from course_lib.datasets import FixedDofs
-
         root = x.reshape(-1, x.shape[-1])[:, -NUM_ROOT:].double()
         self.root_mean.copy_(root.mean(0).float())
         self.root_std.copy_(root.std(0).clamp_min(1e-3).float())
@@ -269,8 +268,6 @@ class PoseCoding:
 
     def fixed_dofs(self):
         """The training data's fixed degrees of freedom (`datasets.FixedDofs`) recorded by `set_stats`."""
-        from course_lib.datasets import FixedDofs
-
         return FixedDofs(mask=self.fixed_mask.numpy(), values=self.fixed_values.double().numpy())
 
     def from_model(self, y: torch.Tensor) -> torch.Tensor:
