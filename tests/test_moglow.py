@@ -143,8 +143,25 @@ def test_history_dropout_rate_and_controls_untouched():
     assert ((hist == 0).all(-1) | (hist != 0).all(-1)).all()  # a frame is dropped whole or not at all
     full = model.condition_inputs(x + 10.0, c)
     torch.testing.assert_close(inp[..., 18:], full[..., 18:])  # controls never dropped
-    torch.testing.assert_close(full[0, 0, :18].reshape(3, 6), x[0, :3] + 10.0)  # frame tau sees x_{0:tau-1}
+    # outside training frame tau sees x_{0:tau-1} times the keep probability (dropout's inference rule) ...
+    torch.testing.assert_close(full[0, 0, :18].reshape(3, 6), 0.05 * (x[0, :3] + 10.0))
     torch.testing.assert_close(full[0, 0, 18:].reshape(4, 3), c[0, :4])  # and c_{0:tau}
+    # ... which is the mean of the training-time masked input
+    torch.testing.assert_close(inp[..., :18].mean((0, 1)), full[..., :18].mean((0, 1)), atol=0.15, rtol=0.1)
+    raw = MoGlow(MoGlowConfig(6, 3, 3, **TINY, history_scale=False)).condition_inputs(x + 10.0, c)
+    torch.testing.assert_close(raw[0, 0, :18].reshape(3, 6), x[0, :3] + 10.0)  # StyleGestures' rule: unscaled
+    nodrop = MoGlow(MoGlowConfig(6, 3, 3, **TINY, dropout=0.0)).condition_inputs(x + 10.0, c)
+    torch.testing.assert_close(nodrop[0, 0, :18].reshape(3, 6), x[0, :3] + 10.0)  # no dropout: nothing to scale
+
+
+def test_stream_scales_the_history_as_condition_inputs():
+    """The streaming generator must condition exactly as encode does, or decode(encode(x)) != x."""
+    model = tiny(dropout=0.5).eval()  # a history scale far from 1
+    x, c = data()
+    z, _ = model.encode(x, c)
+    torch.testing.assert_close(model.decode(z, x[:, :3], c), x, atol=1e-4, rtol=0)
+    model.config.history_scale = False
+    assert (model.decode(z, x[:, :3], c) - x).abs().max() > 1e-3  # the other rule is a different model
 
 
 def test_loss_nats_per_frame_and_dropout_only_in_training():

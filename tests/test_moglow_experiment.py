@@ -43,7 +43,7 @@ def test_stride_frequency_known_answer():
 
 
 def test_data_cadence_estimator_agrees_with_the_generator():
-    """On the data, the estimator's cadence is within 5 % of the generator's own (clip meta)."""
+    """On the data, the estimator's cadence is within 8 % of the generator's own (clip meta; 2.5 % on the full data)."""
     from types import SimpleNamespace
 
     from course_lib.datasets import load_dataset
@@ -51,8 +51,9 @@ def test_data_cadence_estimator_agrees_with_the_generator():
     d = SimpleNamespace(test_clips=load_dataset("locomotion", mode="ci", fps=E.FPS))
     speed = float(np.median([np.mean(m.meta["speed"]) for m in d.test_clips if m.action == "walk"]))
     ref = E.data_gait(d, speed, tol=0.3)
-    assert ref["clips"] >= 1
-    assert abs(ref["cadence"] / ref["cadence_generator"] - 1) < 0.05
+    assert ref["clips"] >= 1 and ref["frames"] >= ref["clips"] * 1.5 * E.FPS  # runs of >= 1.5 s
+    assert abs(ref["estimator_cadence"] / ref["cadence"] - 1) < 0.08  # 1.5-s runs: ~1.5 strides each
+    assert abs(ref["stride_m"] - ref["speed"] / (ref["cadence"] / 2)) < 1e-9  # stride = v / stride frequency
 
 
 def test_constant_control_and_foot_speed(data):
@@ -73,3 +74,10 @@ def test_registered_in_reproduce():
     assert "moglow" in EXPERIMENTS
     train, evaluate = EXPERIMENTS["moglow"]
     assert train.__name__ == "train_moglow" and evaluate.__name__ == "eval_moglow"
+
+
+def test_steady_runs_known_answer():
+    v = np.array([0.0, 1.0, 1.1, 0.9, 1.0, 3.0, 1.0, 1.0, 0.0, 1.05, 1.0, 1.0, 1.1])
+    runs = E.steady_runs(v, 1.0, 0.15, 3)
+    assert [(r.start, r.stop) for r in runs] == [(1, 5), (9, 13)]  # the 2-frame run is too short
+    assert E.steady_runs(v, 5.0, 0.15, 1) == []
