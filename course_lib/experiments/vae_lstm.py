@@ -128,7 +128,7 @@ def lesson02_models() -> dict[str, tuple]:
     from course_lib.models.vae_lstm import VaeLstm, VaeLstmConfig
 
     return {
-        "vae_lstm": (VaeLstm, VaeLstmConfig.cpu(), TrainSpec("vae_lstm", "VAE-LSTM", 1000, 16, 1e-3)),
+        "vae_lstm": (VaeLstm, VaeLstmConfig.cpu(), TrainSpec("vae_lstm", "VAE-LSTM", 2000, 16, 1e-3)),
         "vae_lstm_paper": (VaeLstm, variant_config("paper"),
                            TrainSpec("vae_lstm_paper", "VAE-LSTM, paper's loss", 1000, 16, 1e-3)),
         "erd": (Erd, ErdConfig.cpu(), TrainSpec("erd", "ERD", 500, 16, 1e-3)),
