@@ -356,6 +356,29 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
     return entry
 
 
+def record_metrics(path: str | os.PathLike, model_cls, config_cls, **metrics) -> dict:
+    """Merge ``metrics`` into a shipped checkpoint's manifest entry, weights, config and command unchanged (the
+    file is re-saved from its own state): where a reproduction stores its evaluation for the notebooks.
+    Returns the new entry."""
+    path = Path(path)
+    model = load_checkpoint(path, model_cls, config_cls)
+    mpath = _manifest_path(path, None)
+    entry = _read_manifest(mpath)[_entry_name(path, mpath)]
+    return save_checkpoint(model, model.config, path, command=entry["command"],
+                           metrics={**entry["metrics"], **metrics}, overwrite=True)
+
+
+def recorded_metrics(path: str | os.PathLike) -> dict:
+    """The metrics of a checkpoint's manifest entry (what `save_checkpoint` / `record_metrics` stored)."""
+    path = Path(path)
+    mpath = _manifest_path(path, None)
+    name = _entry_name(path, mpath)
+    table = _read_manifest(mpath)
+    if name not in table:
+        raise KeyError(f"{mpath} has no entry {name!r}; build it with the lesson's reproduction command")
+    return table[name]["metrics"]
+
+
 def _config_from_dict(config_cls, values: dict):
     """Rebuild a config dataclass from JSON, turning lists back into tuples where the field is a tuple."""
     fields = {f.name: f for f in dataclasses.fields(config_cls)}

@@ -270,3 +270,20 @@ def test_load_classifier_with_a_path_verifies_it(tmp_path, repo_root):
     _flip_a_byte(copy)
     with pytest.raises(ValueError, match="sha256 mismatch"):
         load_classifier("action", path=copy)
+
+
+def test_record_metrics_keeps_weights_config_and_command(tmp_path):
+    from course_lib.training import record_metrics, recorded_metrics
+
+    torch.manual_seed(0)
+    model, config = TinyRegressor(TinyConfig()), TinyConfig()
+    path = tmp_path / "tiny.pt"
+    before = save_checkpoint(model, config, path, command="python -m tiny", metrics={"mse": 0.25})
+    after = record_metrics(path, TinyRegressor, TinyConfig, tables={"FID": 12.5})
+    assert recorded_metrics(path) == {"mse": 0.25, "tables": {"FID": 12.5}}
+    assert after["command"] == before["command"] and after["config"] == before["config"]
+    again = load_checkpoint(path, TinyRegressor, TinyConfig)
+    for a, b in zip(model.state_dict().values(), again.state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b, rtol=0, atol=0)
+    with pytest.raises(KeyError, match="no entry"):
+        recorded_metrics(tmp_path / "other.pt")

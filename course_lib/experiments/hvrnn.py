@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import json
 import sys
 import time
 from pathlib import Path
@@ -532,15 +531,14 @@ def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Pa
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
     """Store the evaluation in the Proposed checkpoint's manifest entry (``metrics["tables"]``)."""
-    from course_lib.training import save_checkpoint
+    from course_lib.training import record_metrics
 
-    entry = json.loads((checkpoints / "MANIFEST.json").read_text())["hvrnn_proposed"]
-    model = load_model("hvrnn_proposed", checkpoints)
-    metrics = {**entry["metrics"], "tables": results}
-    return save_checkpoint(model, model.config, checkpoints / "hvrnn_proposed.pt", command=entry["command"],
-                           metrics=metrics, overwrite=True)
+    spec = model_specs()["hvrnn_proposed"]
+    return record_metrics(checkpoints / "hvrnn_proposed.pt", spec.cls, type(spec.config), tables=results)
 
 
 def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
     """The evaluation stored by `record_results` (the shipped >= 100-samples-per-attribute numbers)."""
-    return json.loads((checkpoints / "MANIFEST.json").read_text())["hvrnn_proposed"]["metrics"]["tables"]
+    from course_lib.training import recorded_metrics
+
+    return recorded_metrics(checkpoints / "hvrnn_proposed.pt")["tables"]

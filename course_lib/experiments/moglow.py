@@ -28,7 +28,6 @@ lose the same information.  Nothing runs at import time.
 from __future__ import annotations
 
 import dataclasses
-import json
 import sys
 import time
 from pathlib import Path
@@ -426,20 +425,21 @@ def train_moglow(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS, mode
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
     """Store the evaluation in the main model's manifest entry (``metrics["results"]``)."""
-    from course_lib.training import save_checkpoint
+    from course_lib.models.moglow import MoGlow, MoGlowConfig
+    from course_lib.training import record_metrics
 
-    entry = json.loads((checkpoints / "MANIFEST.json").read_text())["moglow"]
-    model = load_model("moglow", checkpoints)
-    metrics = {**entry["metrics"], "results": results}
-    return save_checkpoint(model, model.config, checkpoints / "moglow.pt", command=entry["command"],
-                           metrics=metrics, overwrite=True)
+    return record_metrics(checkpoints / "moglow.pt", MoGlow, MoGlowConfig, results=results)
 
 
 def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
     """The evaluation stored by `record_results`."""
-    return json.loads((checkpoints / "MANIFEST.json").read_text())["moglow"]["metrics"]["results"]
+    from course_lib.training import recorded_metrics
+
+    return recorded_metrics(checkpoints / "moglow.pt")["results"]
 
 
 def training_curve(name: str, checkpoints: Path = CHECKPOINTS) -> list[float]:
     """The recorded training curve (NLL per frame, every ~1/150 of the run) of a shipped model."""
-    return json.loads((checkpoints / "MANIFEST.json").read_text())[name]["metrics"]["curve"]
+    from course_lib.training import recorded_metrics
+
+    return recorded_metrics(checkpoints / f"{name}.pt")["curve"]
