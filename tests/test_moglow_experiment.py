@@ -81,3 +81,22 @@ def test_steady_runs_known_answer():
     runs = E.steady_runs(v, 1.0, 0.15, 3)
     assert [(r.start, r.stop) for r in runs] == [(1, 5), (9, 13)]  # the 2-frame run is too short
     assert E.steady_runs(v, 5.0, 0.15, 1) == []
+
+
+def test_stepping_speed_sees_steps_not_per_frame_noise():
+    """Known answers: a foot that moves steadily keeps its speed at every lag; i.i.d. per-frame noise of 2 cm
+    scores ~0.8 m/s frame to frame but ~5x less at STEP_LAG; standing still scores 0 at any lag."""
+    rng = np.random.default_rng(0)
+    T = 400
+    still = np.zeros((4, T, 21, 3))
+    assert E.foot_speed(still, E.STEP_LAG) == 0.0
+    stepping = still.copy()
+    stepping[..., 2] = 0.25 * np.sin(2 * np.pi * 0.9 * np.arange(T) / E.FPS)[None, :, None]  # a 0.9-Hz stride
+    noisy = still + rng.normal(0, 0.02, still.shape)
+    v_step = (E.foot_speed(stepping), E.foot_speed(stepping, E.STEP_LAG))
+    v_noise = (E.foot_speed(noisy), E.foot_speed(noisy, E.STEP_LAG))
+    assert v_step[1] > 0.75 * v_step[0]  # stepping: the 0.25-s lag keeps most of the speed
+    expected = np.sqrt(np.pi / 2) * np.sqrt(2) * 0.02 * E.FPS  # mean of a Rayleigh of sd sqrt(2) * 0.02, x fps
+    assert abs(v_noise[0] - expected) < 0.03 and abs(v_noise[1] - expected / E.STEP_LAG) < 0.01
+    with pytest.raises(ValueError, match="lag"):
+        E.foot_speed(still, T)
