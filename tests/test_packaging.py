@@ -84,6 +84,14 @@ def test_environment_yml_mirrors_pyproject():
     assert project["requires-python"].startswith(">=3.11")  # tomllib; the on-disk torch wheel is cp311
 
 
+def test_tqdm_finds_ipywidgets_for_notebook_progress_bars():
+    # without ipywidgets every notebook printed "TqdmWarning: IProgress not found" and drew text bars
+    import tqdm.notebook
+
+    assert tqdm.notebook.IProgress is not None
+    assert "ipywidgets" in exact_pins(pyproject()["project"]["dependencies"])
+
+
 def test_version_matches_pyproject():
     import course_lib
 
