@@ -71,12 +71,6 @@ def test_long_generation_report(setup):
         assert 0 <= r["in_range_motions"] <= r["in_range_first_10s"] <= 4
 
 
-def test_joint_speed_and_freeze_floor():
-    pos = np.zeros((5, 2, 3))
-    pos[:, 1, 0] = np.arange(5) * 0.1  # joint 1 moves 0.1 m per frame
-    assert np.allclose(X.joint_speed(pos, 30.0), 0.1 * 30 / 2)
-
-
 def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
     _, ds, _, _, _ = setup
     spec = X.Lesson03Spec(finetune=((2, 3, 2), (1, 4, 2)))

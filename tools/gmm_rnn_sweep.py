@@ -71,9 +71,9 @@ VARIANTS = {
 
 def evaluate_rnn(model, test, stats, spec, biases=(1.0, 2.0)) -> dict:
     """Generation quality of one RNN on the held-out clips, per sampling bias."""
-    from course_lib.evaluation import fid, foot_skate, jitter
+    from course_lib.evaluation import contact_agreement, fid, foot_skate, jitter
     from course_lib.experiments.gmm_rnn import (
-        contact_agreement,
+        contact_bits,
         continuations,
         long_generation,
         to_motions,
@@ -89,8 +89,9 @@ def evaluate_rnn(model, test, stats, spec, biases=(1.0, 2.0)) -> dict:
         for name, f in (("raw", feats), ("enforced", with_contacts(feats, stats, test, spec.contact_smooth))):
             motions = to_motions(f, stats, test, spec.fps)
             pos = np.stack([m.positions() for m in motions])
+            agree = contact_agreement(motions, contact_bits(f, stats))
             row[name] = {"foot_skate": foot_skate(pos, fps=spec.fps), "jitter": jitter(pos, fps=spec.fps),
-                         "fid": fid(mocap, motions), "contact_agreement": contact_agreement(motions, f, stats)}
+                         "fid": fid(mocap, motions), "contact_agreement": agree}
         lg = long_generation(model, torch.nn.Identity(), test[0], stats, replace(spec, sample_bias=b), test)
         row["long"] = {k: lg["RNN"][k] for k in ("nan_motions", "in_range_motions", "in_range_first_10s",
                                                    "grounded_motions", "grounded_first_10s", "grounded_frames",

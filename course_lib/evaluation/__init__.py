@@ -2,6 +2,8 @@
 
 - `metrics`: prediction/pose error (Habibie 2017 sec. 4.3), foot skate, ground
   penetration, jitter, bone-length violation, control following, APD, NPSS;
+- `contacts`: the lower toe's height, contact labels against the pose's own contacts;
+- `freezing`: joint speed per frame and the freezing threshold from mocap;
 - `classifiers`: Ghorbani 2020 Table 1 action/style classifiers (shipped checkpoints);
 - `distribution`: FID, Inception Score (Ghorbani eq. 27-29), the classifier two-sample test (C2ST);
 - `tables`: our numbers beside the paper's as Markdown / HTML / dict.
@@ -13,6 +15,8 @@ classifier and distribution names are imported lazily (PEP 562), so that
 
 import importlib
 
+from course_lib.evaluation.contacts import contact_agreement, lower_toe
+from course_lib.evaluation.freezing import freeze_floor, joint_speed
 from course_lib.evaluation.metrics import (
     apd,
     bone_length_violation,
@@ -49,7 +53,8 @@ def __dir__():
 
 __all__ = [
     "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation", "c2st",
-    "classifier_features", "facing_yaw", "fid", "foot_skate", "frechet_distance", "ground_penetration",
-    "heading_error", "inception_score", "jitter", "load_classifier", "mean_sd", "motions_to_batch", "npss",
-    "path_distance", "pose_error", "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
+    "classifier_features", "contact_agreement", "facing_yaw", "fid", "foot_skate", "frechet_distance",
+    "freeze_floor", "ground_penetration", "heading_error", "inception_score", "jitter", "joint_speed",
+    "load_classifier", "lower_toe", "mean_sd", "motions_to_batch", "npss", "path_distance", "pose_error",
+    "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
 ]

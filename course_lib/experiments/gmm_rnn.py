@@ -26,6 +26,9 @@ import numpy as np
 import torch
 
 from course_lib.datasets import FixedDofs, WindowDataset, load_stats
+from course_lib.evaluation import foot_skate as foot_skate_of  # noqa: F401  (lesson 03's old name, moved)
+from course_lib.evaluation.contacts import contact_agreement, lower_toe
+from course_lib.evaluation.freezing import freeze_floor, joint_speed  # lesson 06 imports them from here
 from course_lib.motion import Motion
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 from course_lib.reproduce import rounded
@@ -204,14 +207,6 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
     return out
 
 
-def foot_skate_of(positions: np.ndarray, fps: float) -> float:
-    """positions (T, J, 3) or (N, T, J, 3) -> foot skate (m/s) of evaluation.foot_skate."""
-    from course_lib.evaluation import foot_skate
-
-    pos = np.asarray(positions)
-    return foot_skate(pos[None] if pos.ndim == 3 else pos, fps=fps)
-
-
 def quality_row(motions, mocap: list[Motion], fps: float = 30.0, seed: int = 0) -> dict:
     """Foot skate (m/s), jitter (m/s^3), ground penetration (m), FID, IS and the C2ST accuracy (with its 95 %
     interval) of a set against mocap."""
@@ -241,32 +236,13 @@ def quality_table(model, refiners: dict, test: list[Motion], stats, spec: Lesson
     for name, feats in sets.items():
         motions = to_motions(feats, stats, test, spec.fps)
         rows[name] = quality_row(motions, mocap, fps=spec.fps, seed=seed)
-        rows[name]["contact_agreement"] = contact_agreement(motions, feats, stats)
+        rows[name]["contact_agreement"] = contact_agreement(motions, contact_bits(feats, stats))
     return rows
 
 
-def contact_agreement(motions: list[Motion], features: torch.Tensor, stats) -> float:
-    """Fraction of (frame, foot) pairs where the predicted contact bit equals the contact derived from the
-    generated pose itself (Motion.contacts: foot low and slow).  1.0 on mocap by construction."""
-    bits = features[..., -2:].double().numpy() * stats[1][-2:] + stats[0][-2:] > 0.5  # (N, T, 2)
-    derived = np.stack([m.contacts() for m in motions])
-    return float((bits == derived).mean())
-
-
-def freeze_floor(mocap: list[Motion]) -> float:
-    """The freezing threshold: a tenth of the smallest per-clip variance over time of the mean joint
-    speed among the mocap clips, (m/s)^2."""
-    return 0.1 * float(min(joint_speed(m.positions(), m.fps).var() for m in mocap))
-
-
-def joint_speed(positions: np.ndarray, fps: float) -> np.ndarray:
-    """positions (..., T, J, 3) -> mean joint speed per frame (..., T-1), m/s, root motion included."""
-    return np.linalg.norm(np.diff(positions, axis=-3), axis=-1).mean(-1) * fps
-
-
-def lower_toe(positions: np.ndarray, skeleton) -> np.ndarray:
-    """positions (..., T, J, 3) -> the height of the lower toe per frame (..., T), m."""
-    return positions[..., list(skeleton.feet[1::2]), 1].min(-1)
+def contact_bits(features: torch.Tensor, stats) -> np.ndarray:
+    """Normalised features (N, T, D) -> the contact bits (N, T, 2) (left, right) in raw units."""
+    return features[..., -2:].double().numpy() * stats[1][-2:] + stats[0][-2:]
 
 
 def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mocap: list[Motion],

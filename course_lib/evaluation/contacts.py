@@ -1,0 +1,42 @@
+"""Feet and floor: how high the lower toe is, and whether a model's contact labels match its poses.
+
+Taught in notebooks/03_gmm_rnn_refiner.ipynb (the contact-aware model of Wang, Chai et al. 2021,
+sec. 4.3, labels every generated frame with two contact bits).  Foot skate and ground penetration,
+the other foot measures, are in `metrics` (`foot_skate`, `ground_penetration`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from course_lib.motion import Motion
+from course_lib.skeleton import Skeleton
+
+__all__ = ["contact_agreement", "lower_toe"]
+
+
+def lower_toe(positions, skeleton: Skeleton) -> np.ndarray:
+    """positions (..., T, J, 3) world, metres -> the height of the lower of the two toes per frame (..., T), m.
+
+    0 when a toe is on the floor (y = 0); a motion whose lower toe stays high is floating."""
+    pos = np.asarray(positions)
+    if pos.ndim < 3 or pos.shape[-1] != 3 or pos.shape[-2] != skeleton.num_joints:
+        raise ValueError(f"lower_toe: positions must be (..., T, {skeleton.num_joints}, 3), got {pos.shape}")
+    toes = [skeleton.index(f"{side}ToeBase") for side in ("Left", "Right")]
+    return pos[..., toes, 1].min(-1)
+
+
+def contact_agreement(motions: list[Motion], bits, threshold: float = 0.5) -> float:
+    """Fraction of (frame, foot) pairs whose contact label equals the contact derived from the pose itself.
+
+    motions: N Motions of T frames; bits: (N, T, 2) labels (left, right) in raw units, a label is "in
+    contact" when > threshold -> float in [0, 1].  The derived contact is `Motion.contacts` (a foot low
+    and slow, course_lib.motion.CONTACT_HEIGHT / CONTACT_SPEED), so mocap's own labels score 1.0 and
+    labels that ignore the pose score about 0.5."""
+    b = np.asarray(bits)
+    if b.shape != (len(motions), len(motions[0]) if motions else 0, 2):
+        raise ValueError(f"contact_agreement: bits must be (N={len(motions)}, T, 2) for the motions, got {b.shape}")
+    derived = np.stack([m.contacts() for m in motions])  # (N, T, 2)
+    if derived.shape != b.shape:
+        raise ValueError(f"contact_agreement: motions have {derived.shape[:2]} frames, bits {b.shape[:2]}")
+    return float(((b > threshold) == derived).mean())
