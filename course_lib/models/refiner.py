@@ -7,9 +7,10 @@ residual network R and judged by a discriminator D that sees end-effector positi
 
     R_input = [x, p_end(x), v_end(x)]
     R(x)    = (W_r2 lstm(relu(W_r1 R_input + b_r1)) + b_r2) + x                 eq. (11), Fig. 4
-    D(x)    = sigmoid(W_d2 bilstm(relu(W_d1 [p_end(x), v_end(x)] + b_d1)) + b_d2)   eq. (12), Fig. 5
+    l(x)    = W_d2 bilstm(relu(W_d1 [p_end(x), v_end(x)] + b_d1)) + b_d2            eq. (12), Fig. 5
+    D(x)    = sigmoid(l(x))   (eq. 12 as printed has no sigmoid; eq. 10 and 13 take log D)
     L_R     = -log D(R(x_RNN)) + lambda ||root(x) - root(R(x))||^2, lambda = 20  eq. (9), (13)
-    L_D     = -log(1 - D(R(x_RNN))) - log D(x_real)                              eq. (10)
+    L_D     = -log(1 - D(R(x_RNN))) - log D(x_real)                              eq. (10), see "differs"
 
 p_end and v_end are computed in torch (forward kinematics of the decoded pose), so D's loss is
 differentiable through to R's parameters.  Training (sec. 4.2.2): `AdversarialSchedule` (75
@@ -33,9 +34,22 @@ Differs from the paper:
   integrates eq. (4) from the origin for both motions.
 - ``contacts=False`` (the paper's GAN1, no contact awareness) hides the contact bits from R's input
   and passes them through unchanged.
-- the buffer replaces b / 2 = 16 entries per D update (the paper's text); it stores refined motions
-  detached, so D's half-batch from the buffer carries no gradient to R.
+- the buffer replaces b / 2 = 16 entries per D update (the paper's text); it stores D's view of the
+  refined motions (p_end, v_end and the bits D sees), detached, so D's half-batch from the buffer carries
+  no gradient to R.
 - ``RefinerConfig.cpu()`` shrinks the widths: R 500 -> 128 (FC1), 1000 -> 128 (LSTM); D 500 -> 64.
+- D's loss is the mean cross-entropy of its two-way softmax over the real and the refined motions,
+  (softplus(-l_real) + softplus(l_fake)) / 2: eq. (10) halved.  That is the "discriminator's softmax
+  loss" the balance rule of sec. 4.2.2 reads, and its chance level is ln 2 = 0.69, below the halving
+  threshold 1.  With the sum of the two means (chance 2 ln 2 = 1.39, above 1), a D at chance halved R's
+  update count every round: r fell from 5 to 1 within a few rounds and stayed there.  RMSProp makes the
+  factor 1/2 irrelevant to D's updates.
+- each motion's own skeleton: R and D compute p_end and v_end with the rest offsets of the subject the
+  motion belongs to (``offsets=`` (N, J, 3); the canonical skeleton when None), as the evaluation decodes
+  every clip on its own skeleton (the subjects' scales are 0.97-1.09).
+- ``discriminator_contacts=True`` (not in eq. 12, off in the paper's config, on for our GAN2): D also sees
+  the two contact bits, thresholded at 0.5 with a straight-through gradient (D sees 0/1 for real and
+  refined motions alike, R gets the gradient of the soft bit), so R learns bits that match its feet.
 """
 
 from __future__ import annotations
@@ -69,6 +83,7 @@ class RefinerConfig:
     d_fc_width: int = 500  # D's FC1 (Fig. 5)
     d_lstm_width: int = 500  # D's BiLSTM, per direction (Fig. 5)
     contacts: bool = True  # GAN2 (contact-aware, sec. 4.3); False = GAN1
+    discriminator_contacts: bool = False  # D also sees the contact bits (not in eq. 12, see "differs")
     contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits
     lam: float = 20.0  # lambda of the root self-regularisation, eq. (13)
     fps: float = 30.0  # frame rate of the features (for v_end in m/s)
@@ -100,12 +115,19 @@ class RefinerConfig:
             raise ValueError(f"RefinerConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
         if not 0 < self.d_loss_low < self.d_loss_high:
             raise ValueError(f"RefinerConfig: need 0 < d_loss_low < d_loss_high, got {self}")
+        if self.discriminator_contacts and not self.contacts:
+            raise ValueError("RefinerConfig: discriminator_contacts needs contacts=True (GAN1 cannot change the bits)")
 
     @property
     def refined_dims(self) -> tuple[int, ...]:
         """The feature columns R reads and changes (all, or all but the contact bits for GAN1)."""
         return tuple(range(self.dim)) if self.contacts else \
             tuple(c for c in range(self.dim) if c not in self.contact_dims)
+
+    @property
+    def d_input_dim(self) -> int:
+        """Width of D's per-frame input: p_end, v_end (3 E each) and the contact bits if D sees them."""
+        return 6 * self.num_end_effectors + (len(self.contact_dims) if self.discriminator_contacts else 0)
 
 
 # ----------------------------------------------------------------------------- kinematics in torch
@@ -128,7 +150,8 @@ def _rot_y(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
 
 def local_positions(features: torch.Tensor, skeleton: Skeleton, offsets: torch.Tensor | None = None) -> torch.Tensor:
     """Raw state features (..., T, D) -> joint positions (..., T, J, 3) in each frame's floor frame
-    (origin under the root, +Z the heading): FK of R_x(pitch) R_z(roll), the expmaps, root height."""
+    (origin under the root, +Z the heading): FK of R_x(pitch) R_z(roll), the expmaps, root height.
+    offsets: rest offsets (J, 3) for every motion, or (..., J, 3) one skeleton per motion (default: skeleton's)."""
     _check_features(features, skeleton)
     root_tilt = torch.stack((torch.zeros_like(features[..., 4]), features[..., 4], features[..., 5]), -1)
     root_q = euler_to_quat(root_tilt, "YXZ")  # (..., T, 4): R_y(0) R_x(pitch) R_z(roll)
@@ -136,6 +159,8 @@ def local_positions(features: torch.Tensor, skeleton: Skeleton, offsets: torch.T
     q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J, 4)
     root = torch.stack((torch.zeros_like(features[..., 3]), features[..., 3], torch.zeros_like(features[..., 3])), -1)
     off = torch.as_tensor(skeleton.offsets, dtype=features.dtype) if offsets is None else offsets.to(features.dtype)
+    if off.dim() == features.dim():  # one skeleton per motion: (..., J, 3) -> (..., 1, J, 3), shared by its frames
+        off = off.unsqueeze(-3)
     return forward_kinematics(q, root, off, skeleton.parents)[0]
 
 
@@ -181,8 +206,9 @@ def end_effector_features(features: torch.Tensor, skeleton: Skeleton, fps: float
 class Refiner(nn.Module):
     """R of eq. (11), Fig. 4: normalised features x (N, T, D) -> refined x (N, T, D) (residual).
 
-    skeleton: for p_end/v_end (canonical by default); stats: the dataset's (mean (D,), std (D,)),
-    kept as buffers (saved with the weights) to undo the normalisation before the kinematics.
+    skeleton: joint tree and default rest offsets for p_end/v_end (canonical by default); every call takes
+    ``offsets`` (N, J, 3), each motion's own rest offsets.  stats: the dataset's (mean (D,), std (D,)), kept
+    as buffers (saved with the weights) to undo the normalisation before the kinematics.
     """
 
     def __init__(self, config: RefinerConfig | None = None, skeleton: Skeleton | None = None, stats=None):
@@ -209,16 +235,36 @@ class Refiner(nn.Module):
         """Normalised (..., D) -> raw units (x * std + mean)."""
         return x * self.std + self.mean
 
-    def end_effectors(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Normalised x (N, T, D) -> p_end(x), v_end(x): (N, T, 3E) each, metres and m/s."""
-        return end_effector_features(self.raw(x), self.skeleton, self.config.fps, self.offsets)
+    def _offsets(self, x: torch.Tensor, offsets) -> torch.Tensor:
+        """None -> the refiner's skeleton's (J, 3); else each motion's (N, J, 3), checked against x (N, T, D)."""
+        if offsets is None:
+            return self.offsets
+        off = torch.as_tensor(offsets, dtype=self.offsets.dtype, device=x.device)
+        if off.shape != (x.shape[0],) + tuple(self.offsets.shape):
+            raise ValueError(f"offsets must be (N={x.shape[0]}, {self.offsets.shape[0]}, 3), one skeleton per "
+                             f"motion, got {tuple(off.shape)}")
+        return off
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """x: (N, T, D) normalised x_RNN -> R(x): (N, T, D)."""
+    def end_effectors(self, x: torch.Tensor, offsets=None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Normalised x (N, T, D), offsets (N, J, 3) or None -> p_end(x), v_end(x): (N, T, 3E) each, m and m/s."""
+        return end_effector_features(self.raw(x), self.skeleton, self.config.fps, self._offsets(x, offsets))
+
+    def discriminator_input(self, x: torch.Tensor, offsets=None) -> torch.Tensor:
+        """Normalised x (N, T, D) -> D's input (N, T, config.d_input_dim): [p_end, v_end] (eq. 12), plus the
+        contact bits thresholded at 0.5 with a straight-through gradient if D sees them (see "differs")."""
+        parts = list(self.end_effectors(x, offsets))
+        if self.config.discriminator_contacts:
+            cols = list(self.config.contact_dims)
+            soft = self.raw(x)[..., cols]  # (N, T, 2) raw bits
+            parts.append((soft > 0.5).to(soft.dtype) + soft - soft.detach())  # 0/1 forward, identity backward
+        return torch.cat(parts, -1)
+
+    def forward(self, x: torch.Tensor, offsets=None) -> torch.Tensor:
+        """x: (N, T, D) normalised x_RNN, offsets (N, J, 3) each motion's rest offsets or None -> R(x): (N, T, D)."""
         _check_features(x, self.skeleton, "x")
         if x.ndim != 3:
             raise ValueError(f"x must be (N, T, {self.config.dim}), got {tuple(x.shape)}")
-        p_end, v_end = self.end_effectors(x)  # (N, T, 3E) each
+        p_end, v_end = self.end_effectors(x, offsets)  # (N, T, 3E) each
         r_input = torch.cat((x.index_select(-1, self.cols), p_end, v_end), -1)  # R_input, eq. (11)
         h, _ = self.lstm(F.relu(self.fc1(r_input)))  # (N, T, lstm_width)
         delta = self.fc2(h)  # W_r2 lstm(relu(W_r1 R_input + b_r1)) + b_r2
@@ -227,30 +273,32 @@ class Refiner(nn.Module):
 
 
 class Discriminator(nn.Module):
-    """D of eq. (12), Fig. 5: [p_end, v_end] (N, T, 6E) -> probability of being real (N,)."""
+    """D of eq. (12), Fig. 5: [p_end, v_end(, contact bits)] (N, T, config.d_input_dim) -> probability of being
+    real (N,).  The parts may be given separately: D(p_end, v_end) or D(d_input)."""
 
     def __init__(self, config: RefinerConfig | None = None):
         super().__init__()
         self.config = c = config or RefinerConfig()
-        self.fc1 = nn.Linear(6 * c.num_end_effectors, c.d_fc_width)
+        self.fc1 = nn.Linear(c.d_input_dim, c.d_fc_width)
         self.bilstm = nn.LSTM(c.d_fc_width, c.d_lstm_width, batch_first=True, bidirectional=True)
         self.fc2 = nn.Linear(2 * c.d_lstm_width, 1)
 
-    def logits(self, p_end: torch.Tensor, v_end: torch.Tensor) -> torch.Tensor:
-        """p_end, v_end: (N, T, 3E) -> logit of D (N,)."""
-        E3 = 3 * self.config.num_end_effectors
-        if p_end.shape != v_end.shape or p_end.ndim != 3 or p_end.shape[-1] != E3:
-            raise ValueError(f"p_end and v_end must both be (N, T, {E3}), got {tuple(p_end.shape)}, "
-                             f"{tuple(v_end.shape)}")
-        d_input = torch.cat((p_end, v_end), -1)  # eq. (12)
+    def logits(self, *parts: torch.Tensor) -> torch.Tensor:
+        """D's input (N, T, d_input_dim), or its parts p_end, v_end (N, T, 3E) [, bits] -> logit of D (N,)."""
+        F_in = self.config.d_input_dim
+        if not parts or any(p.ndim != 3 or p.shape[:2] != parts[0].shape[:2] for p in parts) or \
+                sum(p.shape[-1] for p in parts) != F_in:
+            raise ValueError(f"D's input must be (N, T, {F_in}) (p_end, v_end{', contact bits' if F_in % 3 else ''}), "
+                             f"got {[tuple(p.shape) for p in parts]}")
+        d_input = torch.cat(parts, -1)  # eq. (12)
         h, _ = self.bilstm(F.relu(self.fc1(d_input)))  # (N, T, 2 H)
         H = self.config.d_lstm_width
         last = torch.cat((h[:, -1, :H], h[:, 0, H:]), -1)  # forward pass's end, backward pass's end
         return self.fc2(last)[:, 0]  # W_d2 bilstm(...) + b_d2
 
-    def forward(self, p_end: torch.Tensor, v_end: torch.Tensor) -> torch.Tensor:
-        """p_end, v_end: (N, T, 3E) -> D(x): (N,) in (0, 1)."""
-        return torch.sigmoid(self.logits(p_end, v_end))
+    def forward(self, *parts: torch.Tensor) -> torch.Tensor:
+        """D's input or its parts (see `logits`) -> D(x): (N,) in (0, 1)."""
+        return torch.sigmoid(self.logits(*parts))
 
 
 # ----------------------------------------------------------------------------- losses
@@ -262,8 +310,9 @@ def refiner_adversarial_loss(d_fake_logits: torch.Tensor) -> torch.Tensor:
 
 
 def discriminator_loss(d_real_logits: torch.Tensor, d_fake_logits: torch.Tensor) -> torch.Tensor:
-    """-log(1 - D(R(x_RNN))) - log D(x_real), each averaged over its motions   -- eq. (10)."""
-    return F.softplus(d_fake_logits).mean() + F.softplus(-d_real_logits).mean()  # -log(1 - s(l)) = softplus(l)
+    """(-log(1 - D(R(x_RNN))) - log D(x_real)) / 2, each term averaged over its motions   -- eq. (10) halved:
+    the mean cross-entropy of D's softmax, chance level ln 2 (see "differs")."""
+    return 0.5 * (F.softplus(d_fake_logits).mean() + F.softplus(-d_real_logits).mean())  # -log(1 - s(l)) = softplus(l)
 
 
 def root_regularisation(x_raw: torch.Tensor, refined_raw: torch.Tensor) -> torch.Tensor:
@@ -375,14 +424,25 @@ class AdversarialSchedule:
 # ----------------------------------------------------------------------------- adversarial training loop (sec. 4.2.2)
 
 
-def _draw(sample, name: str, dim: int, min_n: int) -> torch.Tensor:
-    """Call a batch-making callable -> (N, T, dim) finite float tensor, N >= min_n (else a clear error)."""
-    x = torch.as_tensor(sample(), dtype=torch.float32)
+def _draw(sample, name: str, dim: int, min_n: int) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Call a batch-making callable -> (x (N, T, dim) finite float tensor with N >= min_n, offsets (N, J, 3) or
+    None); the callable returns x or (x, offsets), each motion's rest offsets (else a clear error)."""
+    out = sample()
+    x, off = out if isinstance(out, (tuple, list)) else (out, None)
+    x = torch.as_tensor(x, dtype=torch.float32)
     if x.ndim != 3 or x.shape[-1] != dim or len(x) < min_n:
         raise ValueError(f"{name}() must return (N >= {min_n}, T, {dim}) normalised features, got {tuple(x.shape)}")
     if not torch.isfinite(x).all():
         raise ValueError(f"{name}() returned NaN or inf")
-    return x
+    if off is not None:
+        off = torch.as_tensor(off, dtype=torch.float32)
+        if off.ndim != 3 or len(off) != len(x) or off.shape[-1] != 3:
+            raise ValueError(f"{name}() offsets must be (N={len(x)}, J, 3), got {tuple(off.shape)}")
+    return x, off
+
+
+def _take(off: torch.Tensor | None, n: int) -> torch.Tensor | None:
+    return None if off is None else off[:n]
 
 
 def _d_accuracy(real_logits: torch.Tensor, fake_logits: torch.Tensor) -> tuple[float, float]:
@@ -390,11 +450,13 @@ def _d_accuracy(real_logits: torch.Tensor, fake_logits: torch.Tensor) -> tuple[f
     return float((real_logits > 0).float().mean()), float((fake_logits < 0).float().mean())
 
 
-def _refiner_step(refiner, discriminator, opt_r, x: torch.Tensor, lam: float, adversarial: bool) -> dict:
-    """One R update on x (N, T, D): eq. (13) if adversarial, else only lambda ||root(x) - root(R(x))||^2."""
-    refined = refiner(x)
+def _refiner_step(refiner, discriminator, opt_r, batch, lam: float, adversarial: bool) -> dict:
+    """One R update on batch = (x (N, T, D), offsets): eq. (13) if adversarial, else only
+    lambda ||root(x) - root(R(x))||^2."""
+    x, off = batch
+    refined = refiner(x, off)
     if adversarial:
-        logits = discriminator.logits(*refiner.end_effectors(refined))
+        logits = discriminator.logits(refiner.discriminator_input(refined, off))
         terms = refiner_loss(logits, refiner.raw(x), refiner.raw(refined), lam)
     else:  # warm-up: the self-regularisation term of eq. (13) alone (SimGAN's refiner pre-training)
         reg = root_regularisation(refiner.raw(x), refiner.raw(refined))
@@ -407,15 +469,15 @@ def _refiner_step(refiner, discriminator, opt_r, x: torch.Tensor, lam: float, ad
     return {k: float(v.detach()) for k, v in terms.items()}
 
 
-def _discriminator_step(refiner, discriminator, opt_d, buffer: HistoryBuffer, x: torch.Tensor,
-                        real: torch.Tensor, half: int) -> dict:
-    """One D update (eq. 10): real (N, T, D) vs b/2 refined now + b/2 from the buffer; then refresh the buffer."""
+def _discriminator_step(refiner, discriminator, opt_d, buffer: HistoryBuffer, batch, real, half: int) -> dict:
+    """One D update (eq. 10): real (x, offsets) vs b/2 refined now + b/2 from the buffer; then refresh the buffer.
+    The buffer holds D's view of the refined motions (`Refiner.discriminator_input`), fixed once refined."""
+    (x, off), (x_real, off_real) = batch, real
     with torch.no_grad():
-        current = refiner(x[:half])  # (b/2, T, D), no gradient to R
-        fake = buffer.discriminator_batch(current)  # (b, T, D)
-        p_fake, v_fake = refiner.end_effectors(fake)
-        p_real, v_real = refiner.end_effectors(real)
-    l_real, l_fake = discriminator.logits(p_real, v_real), discriminator.logits(p_fake, v_fake)
+        current = refiner.discriminator_input(refiner(x[:half], _take(off, half)), _take(off, half))  # no grad to R
+        fake = buffer.discriminator_batch(current)  # (b, T, F)
+        real_in = refiner.discriminator_input(x_real, off_real)
+    l_real, l_fake = discriminator.logits(real_in), discriminator.logits(fake)
     loss = discriminator_loss(l_real, l_fake)
     if not torch.isfinite(loss):
         raise FloatingPointError(f"discriminator loss is {float(loss)}")
@@ -427,12 +489,13 @@ def _discriminator_step(refiner, discriminator, opt_d, buffer: HistoryBuffer, x:
     return {"d_loss": float(loss.detach()), "d_acc_real": acc_real, "d_acc_fake": acc_fake}
 
 
-def _fill_buffer(refiner, sample_rnn_batch, buffer: HistoryBuffer, dim: int) -> None:
+def _fill_buffer(refiner, draw_rnn, buffer: HistoryBuffer) -> None:
     """Generate B refined motions with the initial R ("we generate B fake data in the very beginning")."""
     chunks, n = [], 0
     with torch.no_grad():
         while n < buffer.capacity:
-            chunks.append(refiner(_draw(sample_rnn_batch, "sample_rnn_batch", dim, 1)))
+            x, off = draw_rnn()
+            chunks.append(refiner.discriminator_input(refiner(x, off), off))
             n += len(chunks[-1])
     buffer.fill(torch.cat(chunks)[: buffer.capacity])
 
@@ -443,7 +506,8 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
     """Adversarial training of R and D, sec. 4.2.2 -> a training.History.
 
     sample_rnn_batch() -> (N, T, D) normalised x_RNN, sample_real_batch() -> (N', T, D) normalised
-    mocap windows (N >= b/2, N' >= 1; the same normalisation as ``refiner.mean/std``).
+    mocap windows (N >= b/2, N' >= 1; the same normalisation as ``refiner.mean/std``); either may return
+    (features, offsets (N, J, 3)) instead, each motion's rest offsets for the kinematics of R and D.
     Recipe: fill the HistoryBuffer with B refined motions; warm-up: ``schedule.warmup`` R updates on the
     self-regularisation term of eq. (13), then as many D updates (eq. 10); then ``iterations`` rounds,
     each of r R updates (eq. 13) and one D update, with r adapted by ``schedule.record(d_loss)``.
@@ -469,17 +533,17 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
     opt_r = torch.optim.RMSprop(refiner.parameters(), lr=c.lr_refiner, alpha=c.rmsprop_decay)
     opt_d = torch.optim.RMSprop(discriminator.parameters(), lr=c.lr_discriminator, alpha=c.rmsprop_decay)
 
-    def rnn() -> torch.Tensor:
+    def rnn() -> tuple:
         return _draw(sample_rnn_batch, "sample_rnn_batch", c.dim, half)
 
-    def real() -> torch.Tensor:
+    def real() -> tuple:
         return _draw(sample_real_batch, "sample_real_batch", c.dim, 1)
 
     history, warm, start = History(), History(), time.perf_counter()
     history.warmup = warm
     refiner.train()
     discriminator.train()
-    _fill_buffer(refiner, sample_rnn_batch, buffer, c.dim)
+    _fill_buffer(refiner, rnn, buffer)
     n_r, n_d = schedule.next_round() if schedule.warmup > 0 else (0, 0)
     for _ in range(n_r):  # warm-up of R: self-regularisation only
         t = _refiner_step(refiner, discriminator, opt_r, rnn(), c.lam, adversarial=False)
