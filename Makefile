@@ -1,7 +1,7 @@
 # The course's commands.  Everything installs itself: on a fresh machine `make course` and
 # `make test` create .venv, install the pinned packages and generate the data first.
 #
-#   make course      execute every notebook (COURSE_MODE=class unless given) into site/*.html + site/index.html
+#   make course      execute every notebook (COURSE_MODE=class unless given) into site/*.html + site/index.html (MathJax in site/: works offline)
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
 #   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
 #   make data        the synthetic datasets in data/ (kept once made; `rm -r data` to regenerate)

@@ -4,6 +4,13 @@ Usage: python tools/build_site.py --notebooks notebooks --site site --mode class
 
 `make course` runs it after executing every notebook into site/<name>.html.  A lesson whose
 HTML is missing (its execution failed) is listed as "not built" instead of linked.
+
+Equations work with no network: nbconvert's pages load MathJax from a CDN, so this script copies
+MathJax 2.7 into site/mathjax/ and points every page at that copy.  The copy comes from the PyPI
+package jupyter-server-mathjax (pinned in pyproject.toml, installed by `make setup`: no root, no
+apt, the same on every machine); it is MathJax 2.7, the major version whose configuration
+(`MathJax.Hub.Config`) nbconvert's HTML template writes.  tests/test_site_browser.py opens a page
+in headless chromium with the network cut and checks that no raw $...$ is left.
 """
 
 from __future__ import annotations
@@ -11,7 +18,18 @@ from __future__ import annotations
 import argparse
 import html
 import json
+import re
+import shutil
 from pathlib import Path
+
+# nbconvert's default <script src=...> for MathJax (any CDN URL of MathJax is replaced)
+CDN_MATHJAX = re.compile(r'<script src="https?://[^"]*mathjax[^"]*"', re.IGNORECASE)
+# the local copy: config "TeX-AMS-MML_HTMLorMML-full" (the package ships no CommonHTML-only config) + "Safe"
+LOCAL_MATHJAX = "mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full,Safe"
+# the package ships only the STIX-Web web fonts (not MathJax's default TeX fonts): use them, never the
+# reader's locally installed fonts or the image fonts, so every page looks the same everywhere
+FONT_CONFIG = ('<script type="text/x-mathjax-config">MathJax.Hub.Config({"HTML-CSS": '
+               '{availableFonts: [], preferredFont: null, webFont: "STIX-Web", imageFont: null}});</script>\n')
 
 
 def lesson_title(notebook: Path) -> str:
@@ -55,6 +73,35 @@ def render_index(rows: list[dict], mode: str) -> str:
     )
 
 
+def mathjax_source() -> Path:
+    """The folder holding MathJax.js in the installed jupyter-server-mathjax package."""
+    import jupyter_server_mathjax
+
+    folder = Path(jupyter_server_mathjax.__file__).parent / "static"
+    if not (folder / "MathJax.js").is_file():
+        raise FileNotFoundError(f"no MathJax.js in {folder}: reinstall jupyter-server-mathjax (make setup)")
+    return folder
+
+
+def copy_mathjax(site_dir: Path) -> Path:
+    """Copy MathJax into site_dir/mathjax (kept when its MathJax.js is already the same size) -> that folder."""
+    src, dst = mathjax_source(), site_dir / "mathjax"
+    have, want = dst / "MathJax.js", src / "MathJax.js"
+    if not (have.is_file() and have.stat().st_size == want.stat().st_size):
+        shutil.rmtree(dst, ignore_errors=True)
+        shutil.copytree(src, dst)
+    return dst
+
+
+def localise_mathjax(page: Path) -> bool:
+    """Point one HTML page's MathJax <script> at the site's copy -> whether the page changed."""
+    text = page.read_text(encoding="utf-8")
+    new = CDN_MATHJAX.sub(lambda _: f'{FONT_CONFIG}<script src="{LOCAL_MATHJAX}"', text)
+    if new != text:
+        page.write_text(new, encoding="utf-8")
+    return new != text
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--notebooks", type=Path, default=Path("notebooks"), help="folder of the lesson notebooks")
@@ -64,11 +111,14 @@ def main(argv: list[str] | None = None) -> int:
     if not args.notebooks.is_dir():
         parser.error(f"--notebooks {args.notebooks} is not a folder")
     args.site.mkdir(parents=True, exist_ok=True)
+    copy_mathjax(args.site)
+    changed = sum(localise_mathjax(page) for page in sorted(args.site.glob("*.html")))
     rows = lessons(args.notebooks, args.site)
     index = args.site / "index.html"
     index.write_text(render_index(rows, args.mode), encoding="utf-8")
     built = sum(row["html"] is not None for row in rows)
-    print(f"build_site: {index} lists {len(rows)} lessons, {built} built")
+    print(f"build_site: {index} lists {len(rows)} lessons, {built} built; MathJax served from {args.site}/mathjax "
+          f"({changed} pages re-pointed)")
     return 0
 
 
