@@ -100,3 +100,23 @@ def test_recipe_sweep_runs_one_variant_end_to_end(setup):
     for b in ("bias1", "bias2"):
         assert set(res[b]["raw"]) == {"foot_skate", "jitter", "fid", "contact_agreement"}
         assert res[b]["long"]["nan_motions"] == 0 and 0 <= res[b]["long"]["grounded_motions"] <= 4
+
+
+def test_pool_and_gan_carry_each_clips_skeleton(setup):
+    """The refiners' kinematics use the subject of each motion: the pool remembers each start clip's offsets,
+    GAN2's D sees the contact bits, GAN1's does not."""
+    clips, ds, model, _, _ = setup
+    spec = X.Lesson03Spec(pool_sequences=4, pool_frames=20, refiner_window=16)
+    pool = X.rnn_pool(model, ds, spec, seed=0)
+    assert pool.features.shape == (4, 20, 68) and pool.offsets.shape == (4, 21, 3)
+    subjects = np.unique(np.stack([m.skeleton.offsets for m in ds.clips]).round(6), axis=0)  # (S, J, 3)
+    assert len(subjects) > 1  # several subjects, several skeletons
+    gap = np.abs(pool.offsets.numpy()[:, None] - subjects[None]).max(axis=(2, 3)).min(1)  # to the nearest subject
+    assert (gap < 1e-6).all()
+    # each pooled motion starts with the two frames of a clip of that subject
+    x0, off = X.window_sampler(ds.features, 2, 4, torch.Generator().manual_seed(0), X.clip_offsets(ds.clips))()
+    assert torch.equal(pool.features[:, :2], x0) and torch.equal(pool.offsets, off)
+    for contacts in (False, True):
+        R, D, h = X.train_gan(pool, ds, spec, contacts=contacts, seed=0, iterations=2, progress=False)
+        assert D.fc1.in_features == 30 + 2 * contacts and R.config.discriminator_contacts == contacts
+        assert h.num_steps == 2 and np.isfinite(h.step["d_loss"]).all()

@@ -99,9 +99,14 @@ def test_gan1_leaves_contacts_unchanged():
 
 def test_losses_on_hand_made_inputs():
     big = torch.tensor([50.0, 50.0])
-    # D(real) = 1, D(fake) = 0: eq. (10) is 0; D = 0.5 everywhere: 2 log 2
+    # D(real) = 1, D(fake) = 0: eq. (10) is 0; D = 0.5 everywhere (chance): the mean cross-entropy log 2,
+    # below the balance rule's halving threshold 1 (eq. 10's sum, 2 log 2 = 1.39, was above it)
     assert discriminator_loss(big, -big).item() == pytest.approx(0.0, abs=1e-12)
-    assert discriminator_loss(torch.zeros(3), torch.zeros(3)).item() == pytest.approx(2 * math.log(2))
+    assert discriminator_loss(torch.zeros(3), torch.zeros(3)).item() == pytest.approx(math.log(2))
+    assert math.log(2) < RefinerConfig().d_loss_high
+    # D(real) = 0.9 on every real motion, D(fake) = 0.2: (-log 0.9 - log 0.8) / 2
+    l_real, l_fake = torch.full((4,), math.log(9.0)), torch.full((2,), math.log(0.25))
+    assert discriminator_loss(l_real, l_fake).item() == pytest.approx(-(math.log(0.9) + math.log(0.8)) / 2)
     # eq. (9): -log D(R(x)) with D = 0.25 (logit log(1/3))
     assert refiner_adversarial_loss(torch.full((2,), math.log(1 / 3))).item() == pytest.approx(-math.log(0.25))
     # eq. (13): refined motion shifted by 0.1 m in height -> ||.||^2 = 0.01 on every frame
@@ -178,8 +183,12 @@ def test_bad_input_errors():
         R(torch.full((2, 5, 68), float("nan")))
     with pytest.raises(ValueError, match="T >= 2"):
         R(torch.randn(2, 1, 68))
-    with pytest.raises(ValueError, match=r"\(N, T, 15\)"):
+    with pytest.raises(ValueError, match=r"\(N, T, 30\)"):
         Discriminator(tiny())(torch.randn(2, 5, 15), torch.randn(2, 5, 12))
+    with pytest.raises(ValueError, match=r"offsets must be \(N=2, 21, 3\)"):
+        R(torch.randn(2, 5, 68), torch.zeros(3, 21, 3))
+    with pytest.raises(ValueError, match="discriminator_contacts needs contacts"):
+        RefinerConfig(contacts=False, discriminator_contacts=True)
     with pytest.raises(ValueError, match="d_batch"):
         RefinerConfig(d_batch=31)
 
@@ -196,3 +205,54 @@ def test_schedule_smoothing_ignores_a_single_spike():
     assert smooth.record(2.5) == 2  # mean (0.3 + 0.3 + 2.5 + 2.5) / 4 = 1.4 > 1
     with pytest.raises(ValueError, match="smooth"):
         AdversarialSchedule(smooth=0)
+
+
+def test_each_motion_uses_its_own_skeleton():
+    """p_end and v_end of a motion scale with its own skeleton: motion 0 on the canonical offsets, motion 1 on a
+    10 % taller subject (root height scaled too) gives 1.1 x the end-effector positions and velocities."""
+    m = turning_motion()
+    f = torch.from_numpy(encode_state_features(m)).float()
+    tall = f.clone()
+    tall[:, 3] *= 1.1  # the root height scales with the legs
+    R = Refiner(tiny(), stats=(np.zeros(68), np.ones(68)))
+    off = torch.stack((torch.as_tensor(SK.offsets), 1.1 * torch.as_tensor(SK.offsets))).float()  # (2, J, 3)
+    x = torch.stack((f, tall))  # (2, T, 68)
+    p, v = R.end_effectors(x, off)
+    p0, v0 = R.end_effectors(f[None])
+    torch.testing.assert_close(p[0], p0[0])
+    torch.testing.assert_close(p[1], 1.1 * p0[0], rtol=1e-5, atol=1e-5)
+    # v_end: the joint-angle part scales, the root's floor displacement (dx, dz) does not -> the direct kinematics
+    direct = end_effector_features(tall.double(), SK, 30.0, 1.1 * torch.as_tensor(SK.offsets))[1]
+    torch.testing.assert_close(v[1], direct.float(), rtol=1e-4, atol=1e-4)
+    torch.testing.assert_close(v[0], v0[0])
+    p_canon, _ = R.end_effectors(x)  # without offsets: both motions on the canonical skeleton
+    assert (p_canon[1] - p[1]).abs().max() > 0.05  # a 10 % taller subject's hands and head sit elsewhere
+    y = R(x, off)
+    assert y.shape == x.shape
+
+
+def test_discriminator_sees_binary_contact_bits_with_a_straight_through_gradient():
+    torch.manual_seed(0)
+    c = tiny(discriminator_contacts=True)
+    R, D = Refiner(c), Discriminator(c)
+    assert c.d_input_dim == 32 and D.fc1.in_features == 32
+    assert tiny().d_input_dim == 30 and RefinerConfig().d_input_dim == 30  # the paper's D: p_end, v_end only
+    x = torch.zeros(2, 6, 68, requires_grad=True)
+    with torch.no_grad():
+        x[0, :, 66] = 0.7  # a soft "in contact" bit (raw units, stats are identity here)
+        x[1, :, 66] = 0.2
+    d_in = R.discriminator_input(x)
+    assert d_in.shape == (2, 6, 32)
+    assert torch.equal(d_in[0, :, -2], torch.ones(6)) and torch.equal(d_in[1, :, -2], torch.zeros(6))  # 0/1 only
+    d_in[..., -2].sum().backward()
+    assert torch.equal(x.grad[..., 66], torch.ones(2, 6))  # identity gradient to the soft bit
+    assert D(d_in).shape == (2,)
+
+
+def test_balance_rule_keeps_r_at_chance_and_reacts_on_both_sides():
+    """With D's loss at chance (ln 2) r stays; a D near perfect doubles it, a D fooled (loss > 1) halves it."""
+    s = AdversarialSchedule(warmup=0)
+    s.next_round()
+    for _ in range(10):
+        assert s.record(math.log(2)) == 5
+    assert s.record(0.005) == 10 and s.record(1.5) == 5

@@ -21,6 +21,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -83,21 +84,29 @@ def lesson03_data(spec: Lesson03Spec, progress: bool = True) -> tuple[list[Motio
     return train, test, ds
 
 
-def window_sampler(features: list[np.ndarray], length: int, batch: int, generator: torch.Generator):
-    """features: normalised (T_i, D) arrays -> a callable returning (batch, length, D) random windows."""
-    feats = [torch.from_numpy(np.asarray(f, np.float32)) for f in features if len(f) >= length]
-    if not feats:
+def window_sampler(features: list[np.ndarray], length: int, batch: int, generator: torch.Generator, offsets=None):
+    """features: normalised (T_i, D) arrays -> a callable returning (batch, length, D) random windows; with
+    offsets (one (J, 3) rest-offset array per sequence) it returns (windows, their sequences' offsets (batch, J, 3))."""
+    keep = [i for i, f in enumerate(features) if len(f) >= length]
+    if not keep:
         raise ValueError(f"window_sampler: no sequence has {length} frames")
+    feats = [torch.from_numpy(np.asarray(features[i], np.float32)) for i in keep]
+    offs = None if offsets is None else torch.from_numpy(np.stack([np.asarray(offsets[i], np.float32) for i in keep]))
 
-    def sample() -> torch.Tensor:
+    def sample():
         idx = torch.randint(len(feats), (batch,), generator=generator)
         out = []
         for i in idx.tolist():
             s = int(torch.randint(len(feats[i]) - length + 1, (1,), generator=generator))
             out.append(feats[i][s:s + length])
-        return torch.stack(out)
+        return torch.stack(out) if offs is None else (torch.stack(out), offs[idx])
 
     return sample
+
+
+def clip_offsets(clips: list[Motion]) -> torch.Tensor:
+    """-> (N, J, 3) float32 rest offsets of each clip's own skeleton (for the refiner's kinematics)."""
+    return torch.from_numpy(np.stack([m.skeleton.offsets for m in clips]).astype(np.float32))
 
 
 # ----------------------------------------------------------------------------- training
@@ -138,31 +147,37 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     return model, hist, ft
 
 
-def start_frames(features: list[np.ndarray], n: int, generator: torch.Generator) -> torch.Tensor:
-    """n random pairs of consecutive normalised frames -> (n, 2, D) initial frames (sec. 4.1.4)."""
-    return window_sampler(features, 2, n, generator)()
+class RnnPool(NamedTuple):
+    """The RNN motions the refiners train on: features (N, T, D) normalised, offsets (N, J, 3) the rest offsets of
+    the subject whose frames each motion started from."""
+
+    features: torch.Tensor
+    offsets: torch.Tensor
 
 
-def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> torch.Tensor:
-    """spec.pool_sequences RNN motions of spec.pool_frames frames from random training frames -> (N, T, D)."""
+def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> RnnPool:
+    """spec.pool_sequences RNN motions of spec.pool_frames frames from random training frames, with the offsets of
+    the clip each one starts from."""
     g = torch.Generator().manual_seed(seed)
-    x0 = start_frames(ds.features, spec.pool_sequences, g)
-    return model.generate(x0, spec.pool_frames - 2, generator=g, stats=ds.stats, bias=spec.sample_bias)
+    x0, off = window_sampler(ds.features, 2, spec.pool_sequences, g, clip_offsets(ds.clips))()
+    feats = model.generate(x0, spec.pool_frames - 2, generator=g, stats=ds.stats, bias=spec.sample_bias)
+    return RnnPool(feats, off)
 
 
-def train_gan(pool: torch.Tensor, ds: WindowDataset, spec: Lesson03Spec, contacts: bool, seed: int,
+def train_gan(pool: RnnPool, ds: WindowDataset, spec: Lesson03Spec, contacts: bool, seed: int,
               iterations: int | None = None, progress: bool = True, schedule=None):
-    """R and D of sec. 4.2 on random spec.refiner_window-frame crops of the RNN pool vs mocap windows
-    -> (refiner, discriminator, History).  contacts=False is GAN1, True GAN2 (sec. 4.3).  schedule: an
-    AdversarialSchedule (default: the paper's rule with r capped at spec.max_r_updates)."""
+    """R and D of sec. 4.2 on random spec.refiner_window-frame crops of the RNN pool vs mocap windows, every
+    motion's kinematics on its own subject's skeleton -> (refiner, discriminator, History).  contacts=False is
+    GAN1, True GAN2 (sec. 4.3; its D also sees the contact bits).  schedule: an AdversarialSchedule (default: the
+    paper's rule with r capped at spec.max_r_updates)."""
     from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
 
-    config = RefinerConfig.cpu(contacts=contacts, fps=spec.fps)
+    config = RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts, fps=spec.fps)
     torch.manual_seed(seed)
     refiner, disc = Refiner(config, stats=ds.stats), Discriminator(config)
     g = torch.Generator().manual_seed(seed)
-    rnn = window_sampler(list(pool.numpy()), spec.refiner_window, config.d_batch, g)
-    real = window_sampler(ds.features, spec.refiner_window, config.d_batch, g)
+    rnn = window_sampler(list(pool.features.numpy()), spec.refiner_window, config.d_batch, g, pool.offsets)
+    real = window_sampler(ds.features, spec.refiner_window, config.d_batch, g, clip_offsets(ds.clips))
     schedule = schedule or AdversarialSchedule(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high,
                                                max_r_updates=spec.max_r_updates)
     hist = train_refiner(refiner, disc, rnn, real, iterations=spec.refiner_iterations if iterations is None
@@ -203,7 +218,7 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
     out = {"RNN": model.generate(x0, T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
                                  bias=spec.sample_bias)}
     with torch.no_grad():
-        out.update({name: r(out["RNN"]) for name, r in refiners.items()})
+        out.update({name: r(out["RNN"], clip_offsets(clips)) for name, r in refiners.items()})
     return out
 
 
@@ -247,7 +262,8 @@ def contact_bits(features: torch.Tensor, stats) -> np.ndarray:
 
 def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mocap: list[Motion],
                     seed: int = 0) -> dict:
-    """spec.n_random motions of spec.random_seconds from start's first two frames, RNN and refined.
+    """spec.n_random motions of spec.random_seconds from start's first two frames, RNN and refined (refiner None:
+    the RNN only).
 
     -> the mocap's root-height range, highest lower-toe height and freeze floor, and per set ("RNN", "GAN2",
     "GAN2 + contacts"): NaN count, root-height range, motions whose root height stays within the data's range
@@ -260,9 +276,11 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
     x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
     rnn = model.generate(x0.contiguous(), T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
                          bias=spec.sample_bias)
-    with torch.no_grad():
-        sets = {"RNN": rnn, "GAN2": refiner(rnn)}
-    sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn), spec.contact_smooth)
+    sets = {"RNN": rnn}
+    if refiner is not None:
+        with torch.no_grad():
+            sets["GAN2"] = refiner(rnn, clip_offsets([start] * len(rnn)))
+        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn), spec.contact_smooth)
     heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
     toe_top = float(max(lower_toe(m.positions(), m.skeleton).max() for m in mocap))
     floor, last, ten = freeze_floor(mocap), int(5 * spec.fps), int(10 * spec.fps)
