@@ -5,7 +5,8 @@
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
 #   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
 #   make data        the synthetic datasets in data/ (kept once made; `rm -r data` to regenerate)
-#   make student     JupyterLab on notebooks/
+#   make student     student copies (exercises without solutions, nbgrader) in student/, then JupyterLab there
+#   make student-copies  only write the student copies into student/ (keeps existing ones; FORCE=1 rewrites)
 #   make reproduce   retrain every checkpoint with the command in checkpoints/MANIFEST.json (COURSE_MODE=full)
 #   make bench       timings table (python -m course_lib.bench)
 #   make clean       remove site/ and caches (make distclean also removes .venv and data/)
@@ -26,10 +27,10 @@ DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 # the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
 HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
-.PHONY: help setup data course test lint unit nbval reproduce student bench clean distclean
+.PHONY: help setup data course test lint unit nbval reproduce student student-copies bench clean distclean
 
 help:
-	@sed -n '4,12p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,13p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)
@@ -94,14 +95,18 @@ nbval: setup
 reproduce: setup data
 	COURSE_MODE=full $(HEADLESS) $(PY) tools/reproduce.py --manifest checkpoints/MANIFEST.json
 
-student: setup data
-	$(VENV)/bin/jupyter lab notebooks/
+# nbgrader's preprocessors remove the solutions (tools/student_copies.py); the release notebooks stay as they are.
+student-copies: setup
+	$(PY) tools/student_copies.py --notebooks notebooks --out student $(if $(FORCE),--force)
+
+student: student-copies data
+	$(VENV)/bin/jupyter lab student/
 
 bench: setup
 	$(PY) -m course_lib.bench
 
 clean:
-	rm -rf site .pytest_cache .ruff_cache .hypothesis
+	rm -rf site student .pytest_cache .ruff_cache .hypothesis
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 	find notebooks -name .ipynb_checkpoints -type d -prune -exec rm -rf {} +
 

@@ -74,3 +74,22 @@ def test_checks_pass_the_reference_and_fail_wrong_answers(clips):
 
     with pytest.raises(AssertionError, match="contact flags differ"):
         S.check_detect_contacts(height_only, clips)
+
+
+def test_cadence_knows_the_answer_and_the_checks_reject_mistakes(clips):
+    c = np.zeros((90, 2), bool)
+    c[10:40, 0], c[25:60, 1], c[70:, 0] = True, True, True  # three touch-downs in 3 s at 30 fps: 60 steps/min
+    assert S.cadence(c, 30.0) == pytest.approx(60.0)
+    assert S.check_cadence(S.cadence, clips) == pytest.approx(S.cadence(np.asarray(clips[0].meta["contacts"]), 30.0))
+    with pytest.raises(AssertionError, match="steps/min"):  # counts lift-offs too
+        S.check_cadence(lambda c, fps: 60.0 * (c[1:] != c[:-1]).sum() / (len(c) / fps), clips)
+
+    from course_lib.evaluation import foot_skate
+
+    assert S.check_foot_skate(lambda P, sk, fps: foot_skate(P[None], fps=fps, skeleton=sk), clips) < 0.03
+
+    def ankle_skate(P, sk, fps):  # the ankles instead of the toe joints
+        return foot_skate(P[None], fps=fps, skeleton=sk, joints=("LeftFoot", "RightFoot"), height=0.12)
+
+    with pytest.raises(AssertionError, match="skate"):
+        S.check_foot_skate(ankle_skate, clips)

@@ -150,3 +150,27 @@ def test_beta_sweep_reference_kl_falls_with_beta():
     assert res[0]["kl"] > res[1]["kl"] + 0.5
     ans.check_beta_sweep(ans.beta_sweep(x[:400], x[400:], [0.3, 1.0, 3.0], steps=60, hidden=32, obs_std=0.3),
                          x[:400], x[400:], steps=60, hidden=32, obs_std=0.3)
+
+
+def test_iwae_bound_rises_with_k_and_its_check_rejects_mistakes():
+    from course_lib.solutions import vae_basics as ans
+
+    torch.manual_seed(0)
+    model = PoseVae(VaeConfig.cpu(x_dim=20, z_dim=2, hidden=16, obs_std=0.3))
+    x = _toy_poses(n=64)
+    eps = torch.randn(64, 64, 2, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        b1, b64 = ans.iwae_bound(model, x, eps[:1]), ans.iwae_bound(model, x, eps)
+        # K = 1 is the one-sample ELBO with the Monte-Carlo KL: log p(x|z) + log p(z) - log q(z|x)
+        mu, logvar = model.encode(x)
+        z = mu + (0.5 * logvar).exp() * eps[0]
+        log_px = -gaussian_nll(x, model.decode(z), 0.3)
+        log_pz = -0.5 * (z**2 + math.log(2 * math.pi)).sum(-1)
+        log_qz = -0.5 * (eps[0] ** 2 + logvar + math.log(2 * math.pi)).sum(-1)
+    torch.testing.assert_close(b1, log_px + log_pz - log_qz)
+    assert (b64 - b1).mean() > 0  # Burda et al.: the bound tightens with K
+    assert ans.check_iwae(ans.iwae_bound, model, x) > 0
+    with pytest.raises(AssertionError, match="K = 32 differs"):  # mean of the weights' logs: the ELBO again
+        ans.check_iwae(lambda m, x, e: torch.stack([ans.iwae_bound(m, x, e[k:k + 1]) for k in range(len(e))]).mean(0),
+                       model, x)
+

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from course_lib.evaluation import foot_skate
 from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED, Motion
 from course_lib.representations import encode, root_yaw_pitch_roll
 from course_lib.skeleton import Skeleton
 from course_lib.synthetic import ControlProgram, generate_locomotion, make_subject
 
-__all__ = ["check_control_from_root", "check_detect_contacts", "control_from_root", "detect_contacts",
-           "exercise_clips"]
+__all__ = ["cadence", "check_cadence", "check_control_from_root", "check_detect_contacts", "check_foot_skate",
+           "control_from_root", "detect_contacts", "exercise_clips"]
 
 
 # ----------------------------------------------------------------------------- reference answers
@@ -58,6 +59,18 @@ def detect_contacts(positions: np.ndarray, skeleton: Skeleton, fps: float) -> np
             j = skeleton.index(side + part)
             out[:, k] |= (positions[:, j, 1] < h) & (speed[:, j] < CONTACT_SPEED)
     return out
+
+
+def cadence(contacts: np.ndarray, fps: float) -> float:
+    """contacts (T, 2) bool (left, right) -> steps per minute: touch-downs of both feet per minute.
+
+    A touch-down is a frame t >= 1 with contact[t] and not contact[t-1]; the clip lasts T / fps seconds.
+    """
+    contacts = np.asarray(contacts, bool)
+    if contacts.ndim != 2 or contacts.shape[1] != 2 or len(contacts) < 2:
+        raise ValueError(f"cadence: contacts must be (T >= 2, 2) bool, got {contacts.shape}")
+    downs = int((contacts[1:] & ~contacts[:-1]).sum())
+    return 60.0 * downs / (len(contacts) / fps)
 
 
 # ----------------------------------------------------------------------------- fixed test clips
@@ -111,3 +124,47 @@ def check_detect_contacts(fn, clips: list[Motion] | None = None) -> float:
         agree.append((got == m.meta["contacts"]).mean())
     print(f"check_detect_contacts passed; agreement with the generator's ground truth {np.mean(agree):.3f}")
     return float(np.mean(agree))
+
+
+def _drag(positions: np.ndarray, fps: float, speed: float) -> np.ndarray:
+    """The same positions with the whole body dragged along +X at `speed` m/s: (T, J, 3) -> (T, J, 3)."""
+    out = positions.copy()
+    out[..., 0] += speed * np.arange(len(positions))[:, None] / fps
+    return out
+
+
+def check_foot_skate(fn, clips: list[Motion] | None = None) -> float:
+    """Exercise 3: fn(positions (T, J, 3), skeleton, fps) -> mean horizontal toe speed in contact, m/s.
+
+    Compared with course_lib.evaluation.foot_skate on the clips and on the clips dragged at 0.5 m/s (a
+    planted foot then skates at 0.5 m/s).  Returns the mean skate of the clips as generated, m/s."""
+    clips = clips or exercise_clips()
+    for m in clips:
+        P = m.positions()
+        for speed in (0.0, 0.5):
+            Q = _drag(P, m.fps, speed)
+            got, want = float(fn(Q, m.skeleton, m.fps)), foot_skate(Q[None], fps=m.fps, skeleton=m.skeleton)
+            assert np.isclose(got, want, rtol=1e-6, atol=1e-9), (
+                f"{m.action}, body dragged at {speed} m/s: skate {got:.4f} m/s, want {want:.4f} -- the mean of the "
+                "toes' horizontal (x, z) speed over frame pairs where the toe joint is below 0.05 m on both frames")
+    skate = float(np.mean([fn(m.positions(), m.skeleton, m.fps) for m in clips]))
+    print(f"check_foot_skate passed; the clips skate {100 * skate:.2f} cm/s")
+    return skate
+
+
+def check_cadence(fn, clips: list[Motion] | None = None) -> float:
+    """Exercise 4: fn(contacts (T, 2) bool, fps) -> steps per minute, on the clips' ground-truth stance.
+    Returns the turning walk's cadence (steps/min)."""
+    clips = clips or exercise_clips()
+    for m in clips:
+        c = np.asarray(m.meta["contacts"], bool)
+        got, want = float(fn(c, m.fps)), cadence(c, m.fps)
+        assert np.isclose(got, want, rtol=1e-9), (
+            f"{m.action}: {got:.2f} steps/min, want {want:.2f} -- count frames where a foot lands (contact now, "
+            "none on the frame before) on both feet, divide by the clip's length in minutes")
+    one = np.zeros((60, 2), bool)
+    one[30:, 0] = True  # one left touch-down in 2 s at 30 fps: 30 steps/min
+    assert np.isclose(float(fn(one, 30.0)), 30.0), f"one touch-down in 2 s is 30 steps/min, got {fn(one, 30.0)}"
+    walk = float(fn(np.asarray(clips[0].meta["contacts"], bool), clips[0].fps))
+    print(f"check_cadence passed; the turning walk takes {walk:.0f} steps/min")
+    return walk

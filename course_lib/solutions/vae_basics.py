@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from course_lib.models.vae import PoseVae, VaeConfig
 from course_lib.training import fit, seed_everything
 
-__all__ = ["beta_sweep", "check_beta_sweep", "check_elbo", "check_kl", "check_reparameterise", "elbo_per_pose",
-           "kl_closed_form", "reparameterise"]
+__all__ = ["beta_sweep", "check_beta_sweep", "check_elbo", "check_iwae", "check_kl", "check_reparameterise",
+           "elbo_per_pose", "exercise_poses", "iwae_bound", "kl_closed_form", "reparameterise"]
 
 
 # ----------------------------------------------------------------------------- reference answers
@@ -37,6 +38,39 @@ def elbo_per_pose(model: PoseVae, x: torch.Tensor, eps: torch.Tensor) -> torch.T
     s = model.config.obs_std
     log_px = -0.5 * (((x - model.decode(z)) / s) ** 2 + 2 * math.log(s) + math.log(2 * math.pi)).sum(-1)
     return log_px - kl_closed_form(mu, logvar)
+
+
+def iwae_bound(model: PoseVae, x: torch.Tensor, eps: torch.Tensor) -> torch.Tensor:
+    """Importance-weighted bound (Burda et al. 2016) with K samples: eps (K, N, z_dim), x (N, D) -> (N,).
+
+    log (1/K) sum_k p(x, z_k) / q(z_k | x),  z_k = mu + sigma eps_k; K = 1 is a one-sample ELBO, and the
+    bound rises towards log p(x) as K grows.  In log space: logsumexp over k minus log K.
+    """
+    mu, logvar = model.encode(x)
+    z = mu + torch.exp(0.5 * logvar) * eps  # (K, N, z_dim)
+    s = model.config.obs_std
+    x_hat = model.decode(z.flatten(0, 1)).unflatten(0, z.shape[:2])  # (K, N, D)
+    log_px = -0.5 * (((x - x_hat) / s) ** 2 + 2 * math.log(s) + math.log(2 * math.pi)).sum(-1)
+    log_pz = -0.5 * (z**2 + math.log(2 * math.pi)).sum(-1)
+    log_qz = -0.5 * (eps**2 + logvar + math.log(2 * math.pi)).sum(-1)
+    return torch.logsumexp(log_px + log_pz - log_qz, 0) - math.log(eps.shape[0])
+
+
+def exercise_poses(n_clips: int = 24, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """A small seeded pose set for the exercises: normalised poses (N, 63) of training and held-out subjects.
+
+    Poses are `positions_control` without the control (63 joint coordinates in the floor frame), minus the
+    training mean, divided by one global scale (the training poses' RMS deviation), as in the lesson.
+    """
+    from course_lib.datasets import generate_locomotion_set, split_by_subject
+    from course_lib.representations import encode
+
+    clips = generate_locomotion_set(n_clips, seed=seed, fps=30.0, n_subjects=6)
+    train, _, test = split_by_subject(clips, fractions=(0.75, 0.0, 0.25), seed=seed)
+    poses = [np.concatenate([encode(m, "positions_control")[:, :63] for m in part]) for part in (train, test)]
+    mean = poses[0].mean(0)
+    scale = np.sqrt(((poses[0] - mean) ** 2).mean())
+    return tuple(torch.tensor((p - mean) / scale, dtype=torch.float32) for p in poses)
 
 
 def _minibatches(x: torch.Tensor, size: int, seed: int):
@@ -104,6 +138,26 @@ def check_elbo(fn, model: PoseVae, x: torch.Tensor) -> None:
     assert torch.allclose(got, ref, rtol=1e-5, atol=1e-3), f"ELBO differs: mean {got.mean():.3f} vs {ref.mean():.3f}"
     assert torch.allclose(got.mean(), loss["elbo"], rtol=1e-5, atol=1e-3), "mean ELBO differs from model.loss"
     print(f"check_elbo passed: mean ELBO = {got.mean().item():.2f} nats per pose")
+
+
+def check_iwae(fn, model: PoseVae, x: torch.Tensor, k: int = 32) -> float:
+    """Exercise 3: fn(model, x (N, D), eps (K, N, z_dim)) -> (N,) importance-weighted bound.  Returns the mean
+    gain of K samples over one sample, nats per pose."""
+    g = torch.Generator().manual_seed(3)
+    eps = torch.randn(k, len(x), model.config.z_dim, generator=g, dtype=x.dtype)
+    with torch.no_grad():
+        got, ref = fn(model, x, eps), iwae_bound(model, x, eps)
+        one = fn(model, x, eps[:1])
+        one_ref = iwae_bound(model, x, eps[:1])
+    assert got.shape == ref.shape, \
+        f"the bound should have shape {tuple(ref.shape)} (one value per pose), got {tuple(got.shape)}"
+    assert torch.allclose(one, one_ref, rtol=1e-5, atol=1e-3), \
+        f"K = 1 differs: mean {one.mean():.3f} vs {one_ref.mean():.3f} (log p(x|z) + log p(z) - log q(z|x))"
+    assert torch.allclose(got, ref, rtol=1e-5, atol=1e-3), \
+        f"K = {k} differs: mean {got.mean():.3f} vs {ref.mean():.3f} (logsumexp over the samples, minus log K)"
+    gain = float((got - one).mean())
+    print(f"check_iwae passed: K = {k} raises the bound by {gain:.2f} nats per pose over K = 1")
+    return gain
 
 
 def check_beta_sweep(results: list[dict], x_train, x_test, *, steps: int, seed: int = 0, rel_tol: float = 1e-3,
