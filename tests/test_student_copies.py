@@ -9,6 +9,7 @@ fail.  The whole release notebooks run under nbval (`make nbval`).
 
 from __future__ import annotations
 
+import ast
 import copy
 import sys
 from pathlib import Path
@@ -38,6 +39,17 @@ def run_section(nb) -> list[tuple[dict, str | None]]:
     NotebookClient(section, timeout=300, kernel_name="python3", allow_errors=True,
                    resources={"metadata": {"path": str(REPO / "notebooks")}}).execute()
     return [(c, next((o["ename"] for o in c.outputs if o["output_type"] == "error"), None)) for c in section.cells]
+
+
+def names(source: str) -> tuple[set[str], set[str]]:
+    """(names a cell assigns or defines, names it reads) -- IPython magics aside, cells are plain Python."""
+    stored, loaded = set(), set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Name):
+            (stored if isinstance(node.ctx, ast.Store) else loaded).add(node.id)
+        elif isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            stored.add(node.name)
+    return stored, loaded
 
 
 def test_every_lesson_with_nbgrader_cells_is_listed():
@@ -98,3 +110,19 @@ def test_stubs_fail_every_check_and_solutions_pass(lesson):
     assert not not_failing, f"{lesson}: checks that do not fail with AssertionError on the stubs: {not_failing}"
     print(f"{lesson}: {n} exercises; stubs: {sum(e == 'AssertionError' for _, e in checks)}/{n} checks fail "
           f"(AssertionError); solutions: {n}/{n} pass")
+
+
+@pytest.mark.parametrize("lesson", LESSONS)
+def test_cells_after_the_exercises_do_not_read_the_answers(lesson):
+    # in a student copy the answers are stubs and the checks stop at their first failed assertion: a later cell
+    # (key numbers, summaries) that reads a name only an answer or a check defines would fail with a NameError
+    cells = release(lesson).cells
+    last = max(i for i, c in enumerate(cells) if S.is_check(c))
+    answered = set().union(*(names(c.source)[0] for c in cells if S.is_solution(c) or S.is_check(c)))
+    elsewhere = set().union(*(names(c.source)[0] for c in cells[:last + 1]
+                              if c.cell_type == "code" and not (S.is_solution(c) or S.is_check(c))))
+    for c in cells[last + 1:]:
+        if c.cell_type == "code":
+            stored, loaded = names(c.source)
+            reads = (loaded - stored) & (answered - elsewhere)
+            assert not reads, f"{lesson}: a cell after the exercises reads {sorted(reads)}, set only by an exercise"
