@@ -100,3 +100,19 @@ def test_stepping_speed_sees_steps_not_per_frame_noise():
     assert abs(v_noise[0] - expected) < 0.03 and abs(v_noise[1] - expected / E.STEP_LAG) < 0.01
     with pytest.raises(ValueError, match="lag"):
         E.foot_speed(still, T)
+
+
+def test_long_samples_counts_an_exploded_sample_and_scores_the_rest(data):
+    class Replay:
+        """Plays a held-out window's poses back on loop; sequence 0 blows up after 3 s."""
+
+        def sample(self, controls, initial_poses, temperature=1.0, generator=None):
+            T = controls.shape[1]
+            loop = data.test["poses"][:1, E.TAU:].repeat(1, T // (E.WINDOW - E.TAU) + 1, 1)[:, :T]
+            out = loop.expand(len(controls), -1, -1).clone()
+            out[0, 60:] = float("nan")
+            return out
+
+    res = E.long_samples({"replay": Replay()}, data, seed=0, n=3, seconds=8.0)["models"]["replay"]
+    assert res["exploded"] == 1 and res["n"] == 3 and not res["finite"]
+    assert res["frozen"] == 0 and res["min_speed_var"] > 0  # mocap played back does not freeze
