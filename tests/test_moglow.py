@@ -257,3 +257,25 @@ def test_lesson_solutions_pass_and_wrong_answers_fail():
         S.check_coupling_inverse(lambda y, ls, t: y * torch.exp(-ls) + t)
     with pytest.raises(AssertionError, match="nats"):
         S.check_log_prob(lambda m, p, c: S.log_prob(m, p, c) - 0.5)
+
+
+def test_nats_offset_known_answers_and_wrong_answers_fail():
+    """Exercise 4: NLL in metres = NLL standardised + sum log std over the modelled pose values."""
+    from course_lib.solutions import moglow as S
+
+    fixed = np.zeros(63, bool)
+    fixed[[0, 2]] = True
+    std = np.full(66, 0.1)
+    assert S.nats_offset(std, fixed) == pytest.approx(61 * np.log(0.1))  # 61 values of 10 cm spread: -140.5 nats
+    # the exact density gap, by the library's own Gaussian, equals the log-det of the standardisation
+    mean = np.linspace(-1, 1, 66)
+    jac = torch.autograd.functional.jacobian(lambda v: v * torch.as_tensor(std[:63][~fixed]),
+                                             torch.zeros(61, dtype=torch.float64))
+    assert S._metric_nll_gap(std, fixed, mean) == pytest.approx(float(torch.linalg.slogdet(jac)[1]))
+    S.check_nats_offset(S.nats_offset)
+    for wrong, why in ((lambda s, f: -S.nats_offset(s, f), "sign"),  # divided instead of multiplied
+                       (lambda s, f: float(np.log(s[:63]).sum()), "modelled"),  # the fixed values too
+                       (lambda s, f: float(np.log(s[~np.r_[f, np.zeros(3, bool)]]).sum()), "modelled"),  # + controls
+                       (lambda s, f: 0.0, "modelled")):
+        with pytest.raises(AssertionError, match=why):
+            S.check_nats_offset(wrong)

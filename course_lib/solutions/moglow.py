@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from course_lib.models.moglow import ActNorm, AffineCoupling, MoGlow, MoGlowConfig
 
-__all__ = ["actnorm_init", "check_actnorm_init", "check_coupling_inverse", "check_log_prob", "coupling_inverse",
-           "log_prob"]
+__all__ = ["actnorm_init", "check_actnorm_init", "check_coupling_inverse", "check_log_prob", "check_nats_offset",
+           "coupling_inverse", "log_prob", "nats_offset"]
 
 
 # ----------------------------------------------------------------------------- reference answers
@@ -34,6 +35,12 @@ def log_prob(model: MoGlow, poses: torch.Tensor, controls: torch.Tensor) -> torc
     """log p = sum_t log N(z_t; 0, I) + log|det dz/dx|  -- eq. (5), from model.encode."""
     z, log_det = model.encode(poses, controls)
     return (-0.5 * z ** 2 - 0.5 * math.log(2 * math.pi)).sum((1, 2)) + log_det
+
+
+def nats_offset(std: np.ndarray, fixed: np.ndarray) -> float:
+    """std (66,) of the positions_control standardisation, fixed (63,) bool -> sum_d log std_d over the modelled
+    pose values: x = std * x~ + mean, so -log p(x) = -log p~(x~) + sum_d log std_d (change of variables, eq. 5)."""
+    return float(np.log(np.asarray(std, float)[:63][~np.asarray(fixed, bool)]).sum())
 
 
 # ----------------------------------------------------------------------------- checks
@@ -83,3 +90,42 @@ def check_log_prob(fn) -> None:
     diff = (got - want).abs().max().item()
     assert diff < 1e-8, (f"off by up to {diff:.3g} nats: sum the standard-normal log-density of every z value "
                          "(with its -0.5 log 2 pi) over frames and features, then add log_det")
+
+
+def _metric_nll_gap(std: np.ndarray, fixed: np.ndarray, mean: np.ndarray, seed: int = 3) -> float:
+    """-log N(x; mean, diag std^2) - (-log N(x~; 0, I)) on random poses, the modelled values only: the exact gap."""
+    keep = ~np.asarray(fixed, bool)
+    sd = torch.as_tensor(np.asarray(std, float)[:63][keep])
+    mu = torch.as_tensor(np.asarray(mean, float)[:63][keep])
+    x_std = torch.randn(5, len(sd), generator=torch.Generator().manual_seed(seed), dtype=torch.float64)
+    x = x_std * sd + mu  # metres
+    metres = -torch.distributions.Normal(mu, sd).log_prob(x).sum(-1)
+    standard = -torch.distributions.Normal(0.0, 1.0).log_prob(x_std).sum(-1)
+    gap = metres - standard
+    assert float(gap.std()) < 1e-8, "the gap should not depend on the pose"  # a constant: the log-det
+    return float(gap.mean())
+
+
+def check_nats_offset(fn, data=None) -> None:
+    """fn(std (66,), fixed (63,)) -> the constant c with NLL per frame in metres = NLL per standardised frame + c.
+
+    Checked on planted statistics (every modelled std e: c = number of modelled values) and, given `data`
+    (a MoGlowData), on its own standardisation, against the exact gap between the two Gaussian densities."""
+    rng = np.random.default_rng(0)
+    fixed = np.zeros(63, bool)
+    fixed[[0, 2]] = True
+    planted = np.full(66, math.e)
+    planted[[0, 2]] = 1e-6  # fixed values: (clamped) zero spread, not modelled
+    planted[63:] = 50.0  # the controls: an input, not modelled
+    got = float(fn(planted, fixed))
+    sign = ": the sign? x = std x~ + mean stretches space by std, which lowers the density"
+    assert abs(got + 61.0) > 1e-9, f"got -61 nats for 61 modelled values of std e, want +61{sign}"
+    assert abs(got - 61.0) < 1e-9, (f"got {got:.4g} nats for 61 modelled values of std e (want 61): sum log std over "
+                                    "the modelled pose values only (not the fixed ones, not the 3 controls)")
+    cases = [(np.exp(rng.normal(-2.0, 0.5, 66)), fixed, rng.normal(0, 1, 66))]
+    if data is not None:
+        cases.append((data.stats[1], data.fixed, data.stats[0]))
+    for std, fx, mean in cases:
+        got, want = float(fn(std, fx)), _metric_nll_gap(std, fx, mean)
+        assert abs(got - want) < 1e-6 * max(1.0, abs(want)), (
+            f"got {got:.4f}, want {want:.4f} nats" + (sign if abs(got + want) < 1e-6 * abs(want) else ""))
