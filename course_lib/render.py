@@ -7,8 +7,9 @@ character faces +Z at rest, so its left (+X) appears on the image's right when
 seen from the front.  Image sizes are always `size=(H, W)` in pixels; every
 function returns `(H, W, 3)` uint8 arrays (GIFs are returned as bytes).
 
-3-D (pyvista, needs OpenGL): `render_frame`, `render_still`, `render_gif`,
-`render_side_by_side`.  Bones are tubes, joints spheres, on a checkered floor
+3-D (pyvista, needs OpenGL): `render_frame`, `render_still`, `render_side_by_side`, and animations:
+`render_mp4` (H.264, shown with `video_html`: a player with play and scrub controls), `render_gif`
+(only where no player can be used).  Bones are tubes, joints spheres, on a checkered floor
 with 0.5 m tiles; optional root trajectory and discs under feet in contact.
 Headless machines must set, before Python starts (the Makefile and CI do):
 
@@ -211,9 +212,11 @@ def _camera(points: np.ndarray, c: np.ndarray, size, margin: float, view_angle: 
     right /= np.linalg.norm(right)
     up = np.cross(right, f)
     lo, hi = points.min(0), points.max(0)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     focal = (lo + hi) / 2
-    rel = corners - focal
+    rel = points - focal  # the points themselves, not their box's corners: a row seen diagonally stays large
+    u, v = rel @ right, rel @ up
+    focal = focal + right * (u.max() + u.min()) / 2 + up * (v.max() + v.min()) / 2  # centred on the screen
+    rel = points - focal
     ty = np.tan(np.radians(view_angle) / 2) / margin
     tx = ty * size[1] / size[0]
     depth = rel @ f  # + further from the camera
@@ -235,6 +238,75 @@ def _floor(pv, lo, hi):
     return plane
 
 
+# ----------------------------------------------------------------------------- text (PIL: measured widths)
+
+LABEL_FONT_MIN = 9  # px: smaller labels are staggered on two rows instead of shrunk further
+
+
+def _font(px: int):
+    from PIL import ImageFont
+
+    return ImageFont.load_default(size=int(px))
+
+
+def label_layout(centres, labels, width: int, font_px: int, pad: int = 6) -> tuple[int, list[float], list[int]]:
+    """Place labels centred on pixel columns `centres` in an image `width` px wide so that none overlap.
+
+    -> (font size, left edges, row of each label).  The font shrinks until neighbours fit on one row,
+    down to LABEL_FONT_MIN; below that, a label that would have to move more than half its width goes to
+    the next row down.  Edges stay inside the image.
+    """
+    centres = np.asarray(centres, float)
+    if len(centres) != len(labels):
+        raise ValueError(f"label_layout: {len(centres)} centres for {len(labels)} labels")
+    order = np.argsort(centres, kind="stable")
+    size = int(font_px)
+    while True:
+        w = np.array([_font(size).getlength(str(t)) for t in labels])
+        want = np.clip(centres - w / 2, 0, np.maximum(width - w, 0))  # centred, inside the image
+        pairs = zip(order[:-1], order[1:], strict=True)
+        if size <= LABEL_FONT_MIN or all(want[a] + w[a] + pad <= want[b] for a, b in pairs):
+            break
+        size -= 1
+    left, rows, ends = want.copy(), np.zeros(len(labels), int), []  # ends[r]: right edge of row r so far
+    for k in order:
+        for r in range(len(ends) + 1):
+            if r == len(ends):
+                ends.append(-np.inf)
+            x = max(want[k], ends[r] + pad)
+            if x - want[k] <= w[k] / 2 and x + w[k] <= width:
+                break
+        left[k], rows[k], ends[r] = x, r, x + w[k]
+    return size, [float(v) for v in left], [int(r) for r in rows]
+
+
+def label_band(width: int, centres, labels, colors=None, font_px: int = 16) -> np.ndarray:
+    """A white band (h, width, 3) uint8 with the labels written over `centres` (pixel columns), never overlapping."""
+    from PIL import Image, ImageDraw
+
+    size, left, rows = label_layout(centres, labels, width, font_px)
+    line = int(round(size * 1.35))
+    band = Image.new("RGB", (int(width), line * (1 + max(rows, default=0)) + 4), "white")
+    draw = ImageDraw.Draw(band)
+    colors = colors or [(0.1, 0.1, 0.1)] * len(labels)
+    for text, x, r, c in zip(labels, left, rows, colors, strict=True):
+        draw.text((x, 2 + r * line), str(text), font=_font(size), fill=tuple(int(255 * v) for v in _rgb(c)))
+    return np.asarray(band)
+
+
+def _project_px(points: np.ndarray, position, focal, size, view_angle: float = 30.0) -> np.ndarray:
+    """World points (N, 3) -> pixel columns (N,) for the look-at camera of `_camera` (image size (H, W))."""
+    f = np.asarray(focal, float) - np.asarray(position, float)
+    f /= np.linalg.norm(f)
+    right = np.cross(f, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    rel = np.asarray(points, float) - position
+    half = np.tan(np.radians(view_angle) / 2)
+    ndc = (rel @ right) / (rel @ f) / (half * size[1] / size[0])
+    return (ndc + 1) / 2 * size[1]
+
+
+
 class _Scene:
     """A reusable off-screen Plotter holding characters, floor, trajectories and contact discs."""
 
@@ -245,7 +317,23 @@ class _Scene:
         self.tracks, self.size = tracks, tuple(size)
         H, W = _check_size(size)
         c = _view_dir(view)  # validate before opening a window
-        self.p = pv.Plotter(off_screen=True, window_size=(W, H), lighting="light_kit")
+        self.follow, self.frame0 = follow, frames[0]
+        pts = np.concatenate([t.positions[frames].reshape(-1, 3) for t in tracks])
+        floor_lo, floor_hi = pts.min(0) - joint_radius, pts.max(0) + joint_radius
+        if follow:  # frame the poses as seen relative to the moving centre, placed at the first frame
+            rel = np.concatenate([t.positions[frames] - self._centre(frames)[:, None] for t in tracks])
+            pts = rel.reshape(-1, 3) + self._centre([frames[0]])
+        pts = np.concatenate([pts, pts * [1, 0, 1]])  # keep the floor under the feet in view
+        box = np.concatenate([pts + d for d in joint_radius * np.vstack([np.eye(3), -np.eye(3)])])  # joints' extent
+        # labels go in a band above the 3-D picture, laid out once (they do not jump from frame to frame)
+        self.band, h3d = None, H
+        for _ in range(2):  # the band's height depends on the layout, the layout on the camera
+            pos, focal = _camera(box, c, (h3d, W), margin)
+            self.band = self._band(frames[0], pos, focal, (h3d, W), font_px=max(12, H // 16))
+            if self.band is None or H - len(self.band) == h3d:
+                break
+            h3d = H - len(self.band)
+        self.p = pv.Plotter(off_screen=True, window_size=(W, h3d), lighting="light_kit")
         self.p.set_background("white")
         self.chars = []
         for t in tracks:
@@ -254,17 +342,8 @@ class _Scene:
             self.p.add_mesh(ch.mesh, scalars="rgb", rgb=True, interpolation="gouraud", ambient=0.25,
                             diffuse=0.8, specular=0.25)
             self.chars.append(ch)
-        pts = np.concatenate([t.positions[frames].reshape(-1, 3) for t in tracks])
-        pts = np.concatenate([pts, pts * [1, 0, 1]])  # keep the floor under the feet in view
-        lo, hi = pts.min(0) - joint_radius, pts.max(0) + joint_radius
         if floor:
-            self.p.add_mesh(_floor(pv, lo, hi), scalars="rgb", rgb=True, lighting=False)
-        self.follow, self.frame0 = follow, frames[0]
-        if follow:  # frame the poses as seen relative to the moving centre, placed at the first frame
-            rel = np.concatenate([t.positions[frames] - self._centre(frames)[:, None] for t in tracks])
-            pts = rel.reshape(-1, 3) + self._centre([frames[0]])
-            pts = np.concatenate([pts, pts * [1, 0, 1]])
-            lo, hi = pts.min(0) - joint_radius, pts.max(0) + joint_radius
+            self.p.add_mesh(_floor(pv, floor_lo, floor_hi), scalars="rgb", rgb=True, lighting=False)
         if trajectory:
             for t in tracks:
                 root = t.positions[:, 0] * [1, 0, 1] + [0, 0.004, 0]
@@ -272,8 +351,6 @@ class _Scene:
                     self.p.add_mesh(pv.lines_from_points(root), color=tuple(t.color * 0.7), line_width=3,
                                     lighting=False)
         self.discs = self._add_discs(pv) if contacts else []
-        anchors = self._labels(pts, frames[0])
-        pos, focal = _camera(np.concatenate([[lo, hi], anchors]), c, (H, W), margin)
         self.p.camera.position, self.p.camera.focal_point, self.p.camera.up = pos, focal, (0.0, 1.0, 0.0)
         self.cam0 = (pos, focal)
         self.p.reset_camera_clipping_range()
@@ -294,25 +371,13 @@ class _Scene:
                 out.append((actor, t, side))
         return out
 
-    def _labels(self, pts, frame: int) -> np.ndarray:
-        """Text above each labelled track (at its root on `frame`) -> (n, 3) anchor points for framing."""
-        top = pts[:, 1].max() + 0.2
-        anchors = []
-        if self.follow:  # screen-space text, spread like the tracks (which are spread left to right)
-            n = len(self.tracks)
-            for k, t in enumerate(self.tracks):
-                if t.label:
-                    self.p.add_text(t.label, position=((k + 0.5) / n - 0.04 * len(t.label) / n, 0.92),
-                                    viewport=True, font_size=max(7, self.size[0] // 30), color=tuple(t.color))
-            return np.zeros((0, 3))
-        for t in self.tracks:
-            if t.label:
-                x = t.positions[frame, 0] * [1, 0, 1] + [0, top, 0]
-                self.p.add_point_labels([x], [t.label], font_size=max(10, self.size[0] // 18), text_color="black",
-                                        shape_opacity=0.0, show_points=False, always_visible=True, bold=True,
-                                        justification_horizontal="center")
-                anchors.append(x + [0, 0.15, 0])
-        return np.reshape(anchors, (-1, 3))
+    def _band(self, frame: int, position, focal, size3d, font_px: int) -> np.ndarray | None:
+        """(h, W, 3) band with each labelled track's label over its root on `frame`, or None without labels."""
+        labelled = [t for t in self.tracks if t.label]
+        if not labelled:
+            return None
+        xs = _project_px(np.array([t.positions[frame, 0] * [1, 0, 1] for t in labelled]), position, focal, size3d)
+        return label_band(self.size[1], xs, [t.label for t in labelled], [t.color for t in labelled], font_px)
 
     def draw(self, frame: int) -> np.ndarray:
         """-> (H, W, 3) uint8 picture of the given frame."""
@@ -327,7 +392,8 @@ class _Scene:
             self.p.camera.position, self.p.camera.focal_point = self.cam0[0] + shift, self.cam0[1] + shift
             self.p.reset_camera_clipping_range()
         self.p.render()
-        return np.asarray(self.p.screenshot(return_img=True))[..., :3].copy()
+        img = np.asarray(self.p.screenshot(return_img=True))[..., :3].copy()
+        return img if self.band is None else np.concatenate([self.band, img], 0)
 
     def close(self) -> None:
         self.p.close()
@@ -367,7 +433,7 @@ def _tracks(items, parents, colors, labels, center_frame: int | None, gap: float
 _STYLE = dict(trajectory=False, contacts=True, floor=True, bone_radius=0.022, joint_radius=0.034)
 
 
-def render_frame(x, parents=None, frame: int = 0, *, size=(360, 360), view="three_quarter", color=GT_COLOR,
+def render_frame(x, parents=None, frame: int = 0, *, size=(352, 640), view="three_quarter", color=GT_COLOR,
                  **style) -> np.ndarray:
     """One pose of a Motion or of positions (J, 3) / (T, J, 3) -> (H, W, 3) uint8 image.
 
@@ -383,7 +449,7 @@ def render_frame(x, parents=None, frame: int = 0, *, size=(360, 360), view="thre
         scene.close()
 
 
-def render_still(x, path=None, frame: int = 0, parents=None, *, size=(360, 360), view="three_quarter",
+def render_still(x, path=None, frame: int = 0, parents=None, *, size=(352, 640), view="three_quarter",
                  color=GT_COLOR, trajectory: bool = True, **style) -> np.ndarray:
     """Like `render_frame`, with the root trajectory by default; writes a PNG when path is given -> (H, W, 3)."""
     img = render_frame(x, parents, frame, size=size, view=view, color=color, trajectory=trajectory, **style)
@@ -394,7 +460,7 @@ def render_still(x, path=None, frame: int = 0, parents=None, *, size=(360, 360),
 
 
 def render_side_by_side(items, labels=None, colors=None, parents=None, frame: int = 0, path=None, *,
-                        size=(360, 540), view="three_quarter", gap: float = 0.4, **style) -> np.ndarray:
+                        size=(360, 720), view="three_quarter", gap: float = 0.4, **style) -> np.ndarray:
     """Several Motions / position arrays at one frame, translated apart -> (H, W, 3) uint8.
 
     Each is moved so its root is over the origin at `frame`, then spread along the
@@ -418,32 +484,133 @@ def render_side_by_side(items, labels=None, colors=None, parents=None, frame: in
     return img
 
 
-def render_gif(x, path=None, fps: float | None = None, stride: int = 1, parents=None, *, size=(240, 320),
-               view="three_quarter", labels=None, colors=None, trajectory: bool = True, gap: float = 0.4,
-               follow: bool = False, progress: bool = False, **style) -> bytes:
-    """An animation of a Motion / positions (T, J, 3), or of a list of them side by side -> GIF bytes.
+def render_frames(x, stride: int = 1, parents=None, *, size=(352, 640), view="three_quarter", labels=None,
+                  colors=None, trajectory: bool = True, gap: float = 0.4, follow: bool = True, progress: bool = False,
+                  **style) -> tuple[np.ndarray, float]:
+    """The frames of an animation of a Motion / positions (T, J, 3), or of a list of them side by side
+    -> (images (F, H, W, 3) uint8, fps).
 
-    One Plotter is reused; each frame only rewrites the meshes' points.  Frames
-    0, stride, 2*stride, ... are drawn; fps defaults to the clip's fps / stride
-    (30 for raw positions).  The camera is fixed and frames the whole clip, or, with
-    `follow=True`, moves with the root(s) and frames the poses (closer for long clips).
-    Writes the GIF to `path` too when given.
+    One Plotter is reused; each frame only rewrites the meshes' points.  Frames 0, stride, 2*stride, ...
+    are drawn at the clip's fps / stride (30 for raw positions).  With `follow=True` (default) the camera
+    moves with the root(s) and frames the poses, so the character fills the picture; `follow=False` keeps
+    a fixed camera that frames the whole clip.  Labels sit in a band above the picture, never overlapping.
     """
     from tqdm import tqdm
 
     items = list(x) if isinstance(x, (list, tuple)) else [x]
     tracks = _tracks(items, parents, colors, labels, 0, gap, view)
     if stride < 1:
-        raise ValueError(f"render_gif: stride must be >= 1, got {stride}")
+        raise ValueError(f"render: stride must be >= 1, got {stride}")
     T = min(len(t.positions) for t in tracks)
     frames = list(range(0, T, stride))
-    fps = fps or (tracks[0].clip.fps / stride if tracks[0].clip.fps else 30.0)
+    fps = tracks[0].clip.fps / stride if tracks[0].clip.fps else 30.0
     scene = _Scene(tracks, frames, size, view, **{**_STYLE, "trajectory": trajectory, **style}, follow=follow)
     try:
-        images = [scene.draw(f) for f in tqdm(frames, desc="render_gif", **({} if progress else dict(disable=True)))]
+        images = [scene.draw(f) for f in tqdm(frames, desc="render", **({} if progress else dict(disable=True)))]
     finally:
         scene.close()
-    return _write_gif(images, fps, path)
+    return np.stack(images), fps
+
+
+def render_gif(x, path=None, fps: float | None = None, stride: int = 1, parents=None, *, size=(240, 320),
+               view="three_quarter", follow: bool = False, **kw) -> bytes:
+    """Like `render_mp4`, as GIF bytes: only where a video player cannot be used (a GIF has no controls)."""
+    images, clip_fps = render_frames(x, stride, parents, size=size, view=view, follow=follow, **kw)
+    return _write_gif(images, fps or clip_fps, path)
+
+
+def render_mp4(x, path=None, fps: float | None = None, stride: int = 1, parents=None, *, size=(352, 640),
+               view="three_quarter", **kw) -> bytes:
+    """An H.264 MP4 of a Motion / positions (T, J, 3), or of a list side by side -> bytes (`video_html` plays it).
+
+    kw: those of `render_frames` (labels, colors, trajectory, gap, follow=True, progress, style).  Writes `path` too.
+    """
+    images, clip_fps = render_frames(x, stride, parents, size=size, view=view, **kw)
+    return write_mp4(images, fps or clip_fps, path)
+
+
+def render_rows_mp4(rows, labels=None, colors=None, stride: int = 1, parents=None, path=None, *, size=(240, 640),
+                    fps: float | None = None, **kw) -> bytes:
+    """Rows of motions side by side, stacked into one H.264 MP4 -> bytes; `size` is one row's (H, W).
+
+    rows: lists of Motions / positions (T, J, 3); labels, colors: lists of lists like rows (colours default to
+    the same per column).  Every row is cut to the shortest clip.  kw: those of `render_frames`."""
+    labels = labels or [None] * len(rows)
+    colors = colors or [None] * len(rows)
+    if not (len(rows) == len(labels) == len(colors)) or not len(rows):
+        raise ValueError(f"render_rows_mp4: {len(rows)} rows, {len(labels)} label rows, {len(colors)} colour rows")
+    videos = [render_frames(list(r), stride, parents, size=size, labels=lab, colors=col, **kw)
+              for r, lab, col in zip(rows, labels, colors, strict=True)]
+    n = min(len(v) for v, _ in videos)
+    return write_mp4(np.concatenate([v[:n] for v, _ in videos], axis=1), fps or videos[0][1], path)
+
+
+def write_mp4(images, fps: float, path=None, quality: float = 5.0) -> bytes:
+    """(F, H, W, 3) uint8 frames -> H.264 MP4 bytes (yuv420p, faststart: plays in every browser).
+
+    Frames are padded with white to multiples of 16 pixels (the codec's macro blocks), never rescaled."""
+    import os
+    import tempfile
+
+    import imageio_ffmpeg
+
+    images = np.asarray(images, dtype=np.uint8)
+    if images.ndim != 4 or images.shape[-1] != 3:
+        raise ValueError(f"write_mp4: frames must be (F, H, W, 3) uint8, got {images.shape}")
+    F, H, W = images.shape[:3]
+    ph, pw = -H % 16, -W % 16
+    images = np.pad(images, ((0, 0), (0, ph), (0, pw), (0, 0)), constant_values=255)
+    fd, tmp = tempfile.mkstemp(suffix=".mp4")
+    os.close(fd)
+    try:
+        writer = imageio_ffmpeg.write_frames(tmp, (W + pw, H + ph), fps=float(fps), codec="libx264", quality=quality,
+                                             macro_block_size=16, output_params=["-movflags", "+faststart"])
+        writer.send(None)  # start ffmpeg
+        for img in images:
+            writer.send(np.ascontiguousarray(img))
+        writer.close()
+        with open(tmp, "rb") as fh:
+            data = fh.read()
+    finally:
+        os.remove(tmp)
+    if path is not None:
+        with open(path, "wb") as fh:
+            fh.write(data)
+    return data
+
+
+def read_mp4(data: bytes) -> np.ndarray:
+    """MP4 bytes -> (F, H, W, 3) uint8 frames (decoded by imageio-ffmpeg's ffmpeg)."""
+    import os
+    import tempfile
+
+    import imageio_ffmpeg
+
+    fd, tmp = tempfile.mkstemp(suffix=".mp4")
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+    try:
+        reader = imageio_ffmpeg.read_frames(tmp)
+        meta = next(reader)
+        W, H = meta["size"]
+        frames = [np.frombuffer(f, np.uint8).reshape(H, W, 3) for f in reader]
+    finally:
+        os.remove(tmp)
+    return np.stack(frames)
+
+
+def video_html(data: bytes, width: int | None = None, loop: bool = True):
+    """MP4 bytes -> an IPython HTML object: an HTML5 <video controls> (play, pause, scrub) with the video inline
+    (a base64 data URI: the notebook and the course site need no extra file and no network)."""
+    import base64
+
+    from IPython.display import HTML
+
+    size = f' width="{int(width)}"' if width else ' style="max-width: 100%"'
+    src = base64.b64encode(bytes(data)).decode("ascii")
+    return HTML(f'<video controls{" loop" if loop else ""} muted playsinline preload="metadata"{size}>'
+                f'<source src="data:video/mp4;base64,{src}" type="video/mp4">'
+                "Your browser cannot play this MP4 (H.264) video.</video>")
 
 
 def _write_gif(images, fps: float, path=None) -> bytes:
@@ -572,11 +739,13 @@ def _follow_frames(clip: Clip, frames, view, size, floor) -> list[_Frame2D]:
 
 
 def stick_strip(x, parents=None, frames=None, view: str = "side", size=(160, 120), *, n: int = 6,
-                floor: bool = True, line_width: float = 2.5, joint_radius: float = 2.0) -> np.ndarray:
-    """A row of poses as one image -> (H, n_frames * W, 3) uint8; size is one panel's (H, W).
+                floor: bool = True, line_width: float = 2.5, joint_radius: float = 2.0,
+                labels: bool = True) -> np.ndarray:
+    """A row of poses as one image -> (H + label band, n_frames * W, 3) uint8; size is one panel's (H, W).
 
     frames: indices to draw (default n evenly spaced).  All panels share one scale;
-    each panel follows the character, floor ticks every 0.5 m show its travel.
+    each panel follows the character, floor ticks every 0.5 m show its travel.  labels: a band under
+    the panels with each one's frame and, when the clip has an fps, its time ("frame 12, 0.40 s").
     """
     clip = as_clip(x, parents)
     size = _check_size(size)
@@ -588,7 +757,12 @@ def stick_strip(x, parents=None, frames=None, view: str = "side", size=(160, 120
         panel = _render_2d(project(clip.positions[f], view), clip, fr, view, floor, line_width, joint_radius)
         panel[:, -1] = 200  # thin separator
         panels.append(panel)
-    return np.concatenate(panels, axis=1)
+    strip = np.concatenate(panels, axis=1)
+    if not labels:
+        return strip
+    texts = [f"frame {f}" + (f", {f / clip.fps:.2f} s" if clip.fps else "") for f in frames]
+    centres = (np.arange(len(frames)) + 0.5) * size[1]
+    return np.concatenate([strip, label_band(strip.shape[1], centres, texts, font_px=max(10, size[0] // 9))], 0)
 
 
 def stick_gif(x, path=None, parents=None, view: str = "side", size=(200, 200), fps: float | None = None,

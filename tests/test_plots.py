@@ -103,3 +103,27 @@ def test_floor_xz_checks_its_input():
     assert x.shape == (2, 2) and np.array_equal(z, [[2, 5], [8, 11]])
     with pytest.raises(ValueError, match=r"\(\.\.\., 3\)"):
         floor_xz(np.zeros((4, 2)))
+
+
+def test_contact_runs_known_answers():
+    from course_lib.plots import contact_runs
+
+    assert contact_runs([0, 1, 1, 0, 0, 1]) == [(1, 3), (5, 6)]
+    assert contact_runs([1, 1, 1]) == [(0, 3)]
+    assert contact_runs(np.zeros(4, bool)) == []
+    with pytest.raises(ValueError, match=r"\(T,\)"):
+        contact_runs(np.zeros((4, 2)))
+
+
+def test_stance_bars_draw_one_bar_per_stance_run_at_its_time():
+    from course_lib.plots import stance_bars
+
+    c = np.zeros((30, 2), bool)
+    c[0:10, 0], c[20:30, 0], c[5:15, 1] = True, True, True  # left: two stances, right: one
+    fig, ax = plt.subplots()
+    stance_bars(ax, [c], fps=10.0)
+    left, right = ax.collections  # one collection of bars per foot (and row)
+    spans = [[(round(float(p.vertices[:, 0].min()), 6), round(float(np.ptp(p.vertices[:, 0])), 6))
+              for p in coll.get_paths()] for coll in (left, right)]
+    assert spans == [[(0.0, 1.0), (2.0, 1.0)], [(0.5, 1.0)]]  # (start, duration) in seconds per stance run
+    plt.close(fig)
