@@ -154,6 +154,39 @@ def _moglow_stream():
     return lambda: stream.step(c)
 
 
+ONLINE_BATCH = 10  # frames per OnlineController.step (its latency)
+
+
+@register("online control step, 10 frames, 1 thread (frames/s = 10000 / ms)")
+def _online_control():
+    # lesson 04 (course_lib.control.online, Wang et al. sec. 5.3): the paper's 30 fps on a GTX 970; the issue asks 60
+    import math
+
+    import torch
+
+    from course_lib.control import OnlineConfig, OnlineController
+    from course_lib.experiments.gmm_rnn import CHECKPOINTS
+    from course_lib.synthetic import ControlProgram, generate_locomotion, make_subject
+
+    if not (CHECKPOINTS / "gmm_rnn.pt").exists():
+        return None
+    start = generate_locomotion(make_subject(0, seed=0), ControlProgram.constant("walk", 1.2, 2.0), duration=2.0,
+                                seed=0).resample(30.0)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    ctrl = OnlineController(start=start, config=OnlineConfig(batch=ONLINE_BATCH))
+    torch.set_num_threads(threads)
+    turns = iter(range(10**6))
+
+    def step():
+        torch.set_num_threads(1)
+        try:  # a turn every 2 steps, speed 1.2 m/s: the work of a steered run
+            return ctrl.step(1.2, math.pi * (next(turns) // 6 % 2))
+        finally:
+            torch.set_num_threads(threads)
+    return step
+
+
 def run(only: str | None = None, repeat: int = 20) -> str:
     """-> Markdown table of the selected benchmarks (name contains `only`): median and min ms."""
     import torch

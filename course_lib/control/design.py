@@ -1,0 +1,214 @@
+"""Offline motion design (Wang, Chai et al. 2021, sec. 5.2): a motion whose root follows a user's floor curve,
+as the MAP estimate of eq. (14) with the energy of eq. (19) (prior eq. 15-16, curve eq. 17, contact eq. 18).
+
+Taught in notebooks/04_map_control.ipynb.
+
+Sliding windows of 34 frames overlapping by 17 ("spatial temporal optimisation"): for each window
+1. sample candidates from the GMM-RNN after the frames fixed so far (the first candidate continues the previous
+   window's unused half),
+2. particle swarm optimisation (pso.py) from the candidates, d = 0, until the loss stops falling,
+3. L-BFGS (lbfgs.py) on the frames (through the sampler's noise) and d, gradients by BPTT through eq. (4),
+then keep the window's first 17 frames and read them into the RNN.
+
+Differs from the paper: eq. (17) alone is met by standing at the curve's start (the RNN's most likely motion is a
+slow shuffle: 1.3 m in 4 s on a 6-m line, 5 cm off it), so a progress term asks each window's mean root speed to be
+the curve's length / seconds, eq. (22)'s form with sigma_speed = 0.1 m/s, summed per frame. sigma_fit^2 = 0.01 m^2
+(the paper: 0.5): against our prior's scale 0.5 let a 4-s walk along a 6-m line drift 0.60 m from it on average,
+0.01 kept it to 0.09 m (seed 0). The number of candidates, PSO and L-BFGS iterations are not given; ours are in
+`DesignConfig`. The variables are the RNN sampler's
+noise (eps, Gumbel) and d, not the frames themselves (rollout.py says why); L-BFGS holds the Gumbel variables
+(the mixture components) fixed.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from course_lib.control.energy import check_curve, curve_energy
+from course_lib.control.kinematics import heading_yaw, integrate_root
+from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
+from course_lib.control.pso import PsoConfig, pso
+from course_lib.control.rnn_prior import RnnPrior
+from course_lib.control.rollout import draw_noise
+from course_lib.control.window import WindowEnergy
+from course_lib.motion import Motion
+
+__all__ = ["DesignConfig", "design_motion", "default_prior", "prepare_start", "stance_plane", "solve_windows"]
+
+
+@dataclass
+class DesignConfig:
+    """Offline design settings (sizes of sec. 5.2; the search budgets are ours)."""
+
+    window: int = 34  # frames per window (sec. 5.2)
+    hop: int = 17  # frames kept per window: windows overlap by window - hop = 17 (sec. 5.2)
+    candidates: int = 24  # RNN samples per window, the PSO's particles
+    sample_bias: float = 1.0  # Graves' sampling bias of the candidates (lesson 03's generation uses 2)
+    sigma_fit2: float = 0.01  # eq. (17), m^2; the paper's SIGMA_FIT2 = 0.5 drifted (see "differs")
+    pso: PsoConfig = field(default_factory=lambda: PsoConfig(iterations=30, patience=5, rel_tol=1e-3))
+    lbfgs: LbfgsConfig = field(default_factory=lambda: LbfgsConfig(iterations=40))
+    sigma_speed: float | None = 0.1  # m/s, the progress term (not in the paper); None: eq. (17) alone
+    speed: float | None = None  # m/s the progress term asks for; None: the curve's length / seconds
+    use_pso: bool = True  # False: L-BFGS from the best candidate alone (a baseline)
+    use_lbfgs: bool = True  # False: PSO (or the best candidate) alone (a baseline)
+
+    def __post_init__(self):
+        if not 0 < self.hop <= self.window:
+            raise ValueError(f"DesignConfig: need 0 < hop <= window, got hop={self.hop}, window={self.window}")
+        if self.candidates < 1:
+            raise ValueError(f"DesignConfig: candidates must be >= 1, got {self.candidates}")
+
+    @classmethod
+    def tiny(cls, **overrides) -> DesignConfig:
+        """Small budgets for tests: 8 candidates, 5 PSO and 10 L-BFGS iterations."""
+        kw = dict(candidates=8, pso=PsoConfig(iterations=5), lbfgs=LbfgsConfig(iterations=10))
+        return cls(**{**kw, **overrides})
+
+
+@functools.lru_cache(maxsize=1)
+def default_prior() -> RnnPrior:
+    """The shipped GMM-RNN of lesson 03 as a prior (loaded once per process)."""
+    return RnnPrior.from_checkpoints()
+
+
+def stance_plane(motion: Motion, default: float = 0.0244) -> float:
+    """The contact plane's height of eq. (18): the median height of motion's toes on contact frames (m)."""
+    sk = motion.skeleton
+    toes = motion.positions()[:, [sk.index("LeftToeBase"), sk.index("RightToeBase")], 1]  # (T, 2)
+    bits = motion.contacts()
+    return float(np.median(toes[bits])) if bits.any() else default
+
+
+def prepare_start(start: Motion | None, gait: str, seed: int, init, prior: RnnPrior, fps: float = 30.0):
+    """-> (raw (1, 2, D) the two start frames, init (3,) the pose of frame 0 placed at init = (x, z, yaw) or
+    the clip's own when init is None, the start Motion)."""
+    from course_lib.control.starts import held_out_start
+    from course_lib.representations import encode_state_features, root_start
+
+    if start is None:
+        start = held_out_start(gait, seed, fps=fps)
+    if not isinstance(start, Motion):
+        raise ValueError(f"start must be a Motion or None, got {type(start).__name__}")
+    if abs(start.fps - fps) > 1e-6:
+        start = start.resample(fps)
+    if len(start) < 2:
+        raise ValueError(f"start must have at least 2 frames at {fps} fps, got {len(start)}")
+    raw = torch.from_numpy(prior.clean(torch.from_numpy(encode_state_features(start)))[:2].numpy())[None]
+    init = root_start(start) if init is None else init
+    return raw, torch.tensor(init, dtype=torch.float64), start
+
+
+def _second_pose(raw: torch.Tensor, init0: torch.Tensor) -> torch.Tensor:
+    """(x, z, yaw) of start frame 1, one eq. (4) step from frame 0."""
+    xz, yaw = integrate_root(raw[:, 1:2, 0:2], raw[:, 1:2, 2], init0[None])
+    return torch.cat((xz[0, 0], yaw[0]))
+
+
+def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, start: Motion | None = None, *,
+                  prior: RnnPrior | None = None, config: DesignConfig | None = None) -> Motion:
+    """A motion of ``seconds`` (30 fps) whose root follows ``curve`` (K, 2) floor points (x, z), metres.
+
+    It starts at the curve's first point facing along its first segment, from the first two frames of ``start``
+    (None: a held-out start of ``gait`` drawn with ``seed``).  motion.meta["design"] holds each window's loss
+    histories (PSO, L-BFGS) and the wall time."""
+    c = check_curve(curve)
+    if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds must be a positive finite number, got {seconds!r}")
+    config = config or DesignConfig()
+    prior = prior or default_prior()
+    fps = float(prior.model.config.fps)
+    seg = c[1:] - c[:-1]
+    first = seg[np.linalg.norm(seg, axis=1) > 1e-9][0]
+    init0 = (c[0, 0], c[0, 1], float(heading_yaw(torch.from_numpy(first))))
+    raw0, init0, start_m = prepare_start(start, gait, seed, init0, prior, fps)
+    curve_t = torch.from_numpy(c)
+
+    speed = float(np.linalg.norm(seg, axis=1).sum() / seconds) if config.speed is None else config.speed
+
+    def control(xz, yaw, raw):
+        e = curve_energy(xz, curve_t, config.sigma_fit2)
+        if config.sigma_speed is not None:  # the progress term (not in the paper, see "differs")
+            from course_lib.control.online import speed_energy
+
+            e = e + speed_energy(xz[:, 1:], xz[:, 0], speed, fps, config.sigma_speed) * (xz.shape[1] - 1)
+        return e
+
+    frames, info = solve_windows(prior, start_m, raw0, _second_pose(raw0, init0), control,
+                                 max(int(round(seconds * fps)), 3) - 2, config, seed)
+    from course_lib.representations import decode_state_features
+
+    feats = torch.cat((raw0[0], frames), 0).numpy()
+    motion = decode_state_features(feats, start_m.skeleton, fps, tuple(float(v) for v in init0))
+    motion.meta = dict(motion.meta, design=info, curve=c, contacts_bits=feats[:, prior.contact_cols])
+    return motion
+
+
+def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: torch.Tensor, control, total: int,
+                  config: DesignConfig, seed: int) -> tuple[torch.Tensor, dict]:
+    """The sliding-window MAP of sec. 5.2 for ``total`` frames after the two start frames raw0 (1, 2, D), frame 1
+    at init1 -> (raw frames (total, D), info)."""
+    t0 = time.perf_counter()
+    g = torch.Generator().manual_seed(seed)
+    skel, plane = start_m.skeleton, stance_plane(start_m)
+    prev, init = raw0.double(), init1
+    state = prior.start_state(raw0, skel)
+    out, carry, windows, done = [], None, [], 0
+    while done < total:
+        energy = WindowEnergy(prior, skel, prev, state, init, control, plane)
+        raw, u, hist = _solve_window(energy, carry, config, g)
+        left = total - done
+        k = config.hop if left > config.window else min(left, config.window)
+        keep = raw[:, :k]
+        state = prior.advance(prev, keep, state, skel, u[2][:, :k])
+        init = energy.end_pose(keep)
+        prev = torch.cat((prev, keep), 1)[:, -2:]
+        carry = tuple(v[:, k:] for v in u) if k < raw.shape[1] else None
+        out.append(keep[0])
+        windows.append(hist)
+        done += k
+    return torch.cat(out, 0)[:total], {"windows": windows, "seconds": time.perf_counter() - t0}
+
+
+def _solve_window(energy: WindowEnergy, carry, config: DesignConfig, g: torch.Generator):
+    """Candidates -> PSO -> L-BFGS on one window -> (raw (1, T, D), its (eps, gumbel, d), {"pso", "lbfgs"}).
+
+    carry: the previous window's unused (eps, gumbel, d); the first candidate continues it."""
+    prior, T, C, b = energy.prior, config.window, config.candidates, config.sample_bias
+    M, D = prior.model.config.mixtures, prior.dim
+    eps0, g0 = draw_noise(C, T, prior, g)  # C random samples of the RNN (sec. 4.1.4)
+    if carry is not None:
+        n = carry[0].shape[1]
+        eps0[0, :n], g0[0, :n] = carry[0][0], carry[1][0]
+
+    def loss(x):  # PSO particles (P, T (D + M)) -> (P,) eq. (19) with d = 0
+        x = x.reshape(len(x), T, D + M)
+        return energy.sampled(x[..., :D], x[..., D:], None, b)[1]["total"]
+
+    x0 = torch.cat((eps0, g0), -1).reshape(C, -1)
+    if config.use_pso:
+        res = pso(loss, x0, config.pso, g)
+        best, pso_hist = res.best.reshape(1, T, D + M), res.history
+    else:  # the best candidate
+        with torch.no_grad():
+            f = loss(x0)
+        best, pso_hist = x0[int(f.argmin())].reshape(1, T, D + M), [float(f.min())]
+    eps, gum, d = best[..., :D], best[..., D:], torch.zeros(1, T, D, dtype=torch.float64)
+    lb_hist = []
+    if config.use_lbfgs:
+        def total(e, dd):
+            return energy.sampled(e, gum, dd, b)[1]["total"].sum()
+        (eps, d), lb_hist = minimise_lbfgs(total, [eps, d], config.lbfgs)
+        with torch.no_grad():
+            e_end = float(energy.sampled(eps, gum, d, b)[1]["total"])
+        if not e_end <= pso_hist[-1]:  # a component switch can make the energy jump: keep the better end
+            eps, d = best[..., :D], torch.zeros_like(d)
+    with torch.no_grad():
+        raw, terms = energy.sampled(eps, gum, d, b)
+    return raw, (eps, gum, d), {"pso": pso_hist, "lbfgs": lb_hist,
+                                "terms": {k: float(v) for k, v in terms.items()}}

@@ -1,0 +1,69 @@
+"""The root integration of Wang, Chai et al. eq. (4) and forward kinematics of raw ``state_features``, in torch,
+so that every control energy (paper B, sec. 5.2-5.4) is differentiable with respect to the frames (BPTT).
+
+Taught in notebooks/04_map_control.ipynb (lesson 04).  ``representations.decode_state_features`` is the numpy
+decoder of the same eq. (4); tests/test_control.py checks that both give the same root path and joints.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from course_lib.rotations import euler_to_quat, expmap_to_quat
+from course_lib.skeleton import Skeleton, forward_kinematics
+
+__all__ = ["integrate_root", "world_positions", "toe_positions", "heading_yaw"]
+
+
+def heading_yaw(direction) -> torch.Tensor:
+    """Floor vectors (..., 2) (x, z) -> the yaw (...) that faces them: the character faces R_y(yaw) (0, 0, 1)
+    = (sin yaw, cos yaw) on the floor (rest pose faces +Z)."""
+    direction = torch.as_tensor(direction)
+    return torch.atan2(direction[..., 0], direction[..., 1])
+
+
+def integrate_root(d: torch.Tensor, dyaw: torch.Tensor, init: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Eq. (4), M_t = M_{t-1} M_t,local, for frames that follow a known frame.
+
+    d: (..., T, 2) floor-frame displacements (dx, dz) of each frame from the one before, dyaw: (..., T),
+    init: (..., 3) (x, z, yaw) of the frame before row 0 -> root_xz (..., T, 2), yaw (..., T).
+    Unlike the numpy decoder, row 0 is used: it is the step from ``init`` to the first frame.
+    """
+    if d.shape[-1] != 2 or d.shape[:-1] != dyaw.shape or init.shape[-1] != 3:
+        raise ValueError(f"integrate_root: need d (..., T, 2), dyaw (..., T), init (..., 3); got "
+                         f"{tuple(d.shape)}, {tuple(dyaw.shape)}, {tuple(init.shape)}")
+    init = init.to(d.dtype).expand(*d.shape[:-2], 3)  # one init for every motion, or one each
+    # yaw_t = yaw_{t-1} + dyaw_t
+    yaw = init[..., 2:3] + torch.cumsum(dyaw, -1)  # (..., T)
+    prev_yaw = torch.cat((init[..., 2:3], yaw[..., :-1]), -1)  # (..., T)
+    c, s = torch.cos(prev_yaw), torch.sin(prev_yaw)
+    # p_t - p_{t-1} = R_y(yaw_{t-1}) d_t
+    step = torch.stack((c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]), -1)  # (..., T, 2)
+    return init[..., None, :2] + torch.cumsum(step, -2), yaw
+
+
+def world_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor, joints=None) -> torch.Tensor:
+    """Raw state features (..., T, D) of frames following the frame at init (..., 3) = (x, z, yaw)
+    -> world joint positions (..., T, J', 3), metres (J' = len(joints), default every joint).
+
+    The root rotation is R_y(yaw) R_x(pitch) R_z(roll) (representations.root_yaw_pitch_roll), the joint
+    rotations the expmaps theta_2..theta_J of eq. (3); the contact bits are not used."""
+    J = skeleton.num_joints
+    if raw.shape[-1] != 6 + 3 * (J - 1) + 2:
+        raise ValueError(f"world_positions: raw must be (..., T, {6 + 3 * (J - 1) + 2}), got {tuple(raw.shape)}")
+    xz, yaw = integrate_root(raw[..., 0:2], raw[..., 2], init)
+    root_q = euler_to_quat(torch.stack((yaw, raw[..., 4], raw[..., 5]), -1), "YXZ")  # (..., T, 4)
+    theta = raw[..., 6:-2].unflatten(-1, (J - 1, 3))  # (..., T, J-1, 3)
+    q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J, 4)
+    root = torch.stack((xz[..., 0], raw[..., 3], xz[..., 1]), -1)  # (..., T, 3)
+    offsets = torch.as_tensor(skeleton.offsets, dtype=raw.dtype)
+    pos = forward_kinematics(q, root, offsets, skeleton.parents)[0]  # (..., T, J, 3)
+    return pos if joints is None else pos[..., [skeleton.index(j) for j in joints], :]
+
+
+TOES = ("LeftToeBase", "RightToeBase")  # the contact points of eq. (18): the joints foot_skate measures
+
+
+def toe_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor) -> torch.Tensor:
+    """Raw state features (..., T, D) -> the world positions (..., T, 2, 3) of the left and right toes."""
+    return world_positions(raw, skeleton, init, TOES)

@@ -1,0 +1,140 @@
+"""Online motion control (Wang, Chai et al. 2021, sec. 5.3): the user steers speed and direction while the
+character moves; each call optimises the next short batch of frames, MAP with eq. (20)-(23):
+
+    E = prior (eq. 15-16) + contact (eq. 18)
+      + ((1/T) sum_i speed_i - c_speed)^2 / sigma_speed^2                               -- eq. (22)
+      + 2 (1 - cos(yaw_T - c_direction)) / sigma_direction^2                            -- eq. (23)
+
+speed_i = ||root_xz_i - root_xz_{i-1}|| fps; yaw_T the heading of the batch's last frame (2 (1 - cos x) ~ x^2,
+without the jump at +-pi).  Per call: a few RNN samples, the best one, then a few L-BFGS iterations on its
+sampler noise and d (rollout.py; gradients by BPTT).
+
+Latency: a command given to ``step`` shapes the ``batch`` frames that call returns (10 frames = 0.33 s at
+30 fps); its speed is the batch's average, its direction is asked of the batch's last frame.
+
+Taught in notebooks/04_map_control.ipynb.
+
+Differs from the paper: sigma_speed, sigma_direction and the batch length are not given (ours below); the
+direction asked of one batch is the current heading turned towards the command by at most ``max_turn``
+(a 180-degree command is reached over several batches instead of asking the prior for a U-turn in 0.33 s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
+from course_lib.control.rnn_prior import RnnPrior
+from course_lib.control.rollout import draw_noise
+from course_lib.control.window import WindowEnergy
+from course_lib.motion import Motion
+
+__all__ = ["OnlineConfig", "OnlineController", "speed_energy", "direction_energy"]
+
+
+@dataclass
+class OnlineConfig:
+    """Online control settings (ours; the paper gives none)."""
+
+    batch: int = 10  # frames optimised and returned per step (the latency)
+    candidates: int = 4  # RNN samples per step; the best starts L-BFGS
+    lbfgs_iterations: int = 4  # function evaluations per step
+    sigma_speed: float = 0.05  # m/s, eq. (22)
+    sigma_direction: float = 0.01  # rad, eq. (23); 0.03 took 2 s for a 180-degree command, 0.01 took 1 s
+    max_turn: float = math.radians(60)  # the most the asked direction differs from the heading, per batch
+    sample_bias: float = 1.0  # Graves' bias of the samples
+
+    def __post_init__(self):
+        if self.batch < 2 or self.candidates < 1 or self.lbfgs_iterations < 0:
+            raise ValueError(f"OnlineConfig: need batch >= 2, candidates >= 1, lbfgs_iterations >= 0, got {self}")
+
+
+def speed_energy(root_xz: torch.Tensor, prev_xz: torch.Tensor, speed: float, fps: float, sigma: float):
+    """Eq. (22): root_xz (N, T, 2), prev_xz (N, 2) the frame before -> (N,)."""
+    path = torch.cat((prev_xz[:, None], root_xz), 1)  # (N, T + 1, 2)
+    v = ((path[:, 1:] - path[:, :-1]) ** 2).sum(-1).clamp(min=1e-12).sqrt() * fps  # (N, T) m/s
+    return (v.mean(-1) - speed) ** 2 / sigma ** 2
+
+
+def direction_energy(yaw: torch.Tensor, direction: float, sigma: float):
+    """Eq. (23): yaw (N, T) -> (N,), 2 (1 - cos(yaw_T - direction)) / sigma^2."""
+    return 2 * (1 - torch.cos(yaw[:, -1] - direction)) / sigma ** 2
+
+
+class OnlineController:
+    """Speed and direction control of a walking (or other gait) character.
+
+    ``step(speed, direction)``: speed in m/s, direction the wanted heading in radians (0 faces +Z, pi/2 +X)
+    -> the next ``config.batch`` frames as a Motion (world coordinates, continuing the previous ones)."""
+
+    def __init__(self, gait: str = "walk", seed: int = 0, start: Motion | None = None, prior: RnnPrior | None = None,
+                 config: OnlineConfig | None = None):
+        from course_lib.control.design import _second_pose, default_prior, prepare_start, stance_plane
+
+        self.prior = prior or default_prior()
+        self.config = config or OnlineConfig()
+        self.fps = float(self.prior.model.config.fps)
+        raw0, init0, start_m = prepare_start(start, gait, seed, None, self.prior, self.fps)
+        self.skeleton, self.plane = start_m.skeleton, stance_plane(start_m)
+        self.generator = torch.Generator().manual_seed(seed)
+        self.prev, self.pose = raw0.double(), _second_pose(raw0, init0)  # (1, 2, D), (3,) of frame 1
+        self.state = self.prior.start_state(raw0, self.skeleton)
+        self.frames = [raw0[0]]  # raw features so far, from the two start frames
+        self.init0 = init0
+
+    @property
+    def heading(self) -> float:
+        """The current heading (yaw, radians)."""
+        return float(self.pose[2])
+
+    def _target_direction(self, direction: float) -> float:
+        delta = (direction - self.heading + math.pi) % (2 * math.pi) - math.pi
+        return self.heading + float(np.clip(delta, -self.config.max_turn, self.config.max_turn))
+
+    def step(self, speed: float, direction: float) -> Motion:
+        """speed (m/s) >= 0, direction (rad) -> the next batch of frames."""
+        if not (math.isfinite(speed) and math.isfinite(direction)) or speed < 0:
+            raise ValueError(f"step: need a finite speed >= 0 and a finite direction, got {speed!r}, {direction!r}")
+        cfg, prior = self.config, self.prior
+        target = self._target_direction(float(direction))
+        prev_xz = self.pose[None, :2]
+
+        def control(xz, yaw, raw):
+            return (speed_energy(xz, prev_xz.expand(len(xz), 2), speed, self.fps, cfg.sigma_speed)
+                    + direction_energy(yaw, target, cfg.sigma_direction))
+
+        energy = WindowEnergy(prior, self.skeleton, self.prev, self.state, self.pose, control, self.plane)
+        eps, gum = draw_noise(cfg.candidates, cfg.batch, prior, self.generator)
+        with torch.no_grad():
+            k = int(energy.sampled(eps, gum, None, cfg.sample_bias)[1]["total"].argmin())
+        eps, gum = eps[k:k + 1], gum[k:k + 1]
+        d = torch.zeros(1, cfg.batch, prior.dim, dtype=torch.float64)
+        if cfg.lbfgs_iterations:
+            (eps, d), _ = minimise_lbfgs(lambda e, dd: energy.sampled(e, gum, dd, cfg.sample_bias)[1]["total"].sum(),
+                                         [eps, d], LbfgsConfig(iterations=cfg.lbfgs_iterations))
+        with torch.no_grad():
+            raw, _ = energy.sampled(eps, gum, d, cfg.sample_bias)
+        return self._commit(energy, raw, d)
+
+    def _commit(self, energy: WindowEnergy, raw: torch.Tensor, d: torch.Tensor) -> Motion:
+        from course_lib.representations import decode_state_features
+
+        pose = self.pose
+        self.state = self.prior.advance(self.prev, raw, self.state, self.skeleton, d)
+        self.pose = energy.end_pose(raw)
+        self.prev = torch.cat((self.prev, raw), 1)[:, -2:]
+        self.frames.append(raw[0])
+        feats = torch.cat((raw[0, :1], raw[0]), 0).numpy()  # a placeholder row 0 at ``pose`` (the decoder skips it)
+        m = decode_state_features(feats, self.skeleton, self.fps, tuple(float(v) for v in pose))
+        return m[1:]
+
+    def motion(self) -> Motion:
+        """Everything generated so far, from the two start frames."""
+        from course_lib.representations import decode_state_features
+
+        feats = torch.cat(self.frames, 0).numpy()
+        return decode_state_features(feats, self.skeleton, self.fps, tuple(float(v) for v in self.init0))

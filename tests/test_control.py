@@ -1,0 +1,270 @@
+"""course_lib.control (lesson 04, Wang, Chai et al. sec. 5): known answers for every term of the MAP energy,
+PSO, the BPTT gradient, and short runs of design / online control / denoising with the shipped GMM-RNN."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from course_lib.control import energy as E
+from course_lib.control.kinematics import heading_yaw, integrate_root, toe_positions, world_positions
+from course_lib.control.pso import PsoConfig, pso
+from course_lib.motion import Motion
+
+
+@pytest.fixture(scope="module")
+def walk() -> Motion:
+    """A 2-s walk of one subject at 30 fps (generated, seeded)."""
+    from course_lib.synthetic import ControlProgram, generate_locomotion, make_subjects
+
+    sub = make_subjects(3, 7)[1]
+    return generate_locomotion(sub, ControlProgram.constant("walk", 1.2, 2.0), duration=2.0, seed=3).resample(30.0)
+
+
+@pytest.fixture(scope="module")
+def prior():
+    from course_lib.control.design import default_prior
+
+    torch.set_num_threads(1)
+    return default_prior()
+
+
+# --- the curve term, eq. (17) ------------------------------------------------------------------
+
+
+def test_nearest_on_polyline_known_answers():
+    curve = torch.tensor([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]], dtype=torch.float64)
+    pts = torch.tensor([[1.0, 1.0], [3.0, 1.0], [-1.0, -1.0], [2.5, 3.0], [1.0, 0.0]], dtype=torch.float64)
+    near, dist = E.nearest_on_polyline(pts, curve)
+    want = torch.tensor([[1.0, 0.0], [2.0, 1.0], [0.0, 0.0], [2.0, 2.0], [1.0, 0.0]], dtype=torch.float64)
+    assert torch.allclose(near, want)
+    assert torch.allclose(dist, torch.tensor([1.0, 1.0, math.sqrt(2), math.sqrt(1.25), 0.0], dtype=torch.float64))
+
+
+def test_curve_energy_zero_on_the_curve_and_quadratic_off_it():
+    curve = torch.tensor([[0.0, 0.0], [0.0, 5.0]], dtype=torch.float64)
+    on = torch.stack((torch.zeros(10), torch.linspace(0, 5, 10)), -1).double()[None]
+    assert float(E.curve_energy(on, curve)) == 0.0
+    off = on + torch.tensor([0.1, 0.0], dtype=torch.float64)
+    assert float(E.curve_energy(off, curve, sigma_fit2=0.5)) == pytest.approx(10 * 0.01 / 0.5)
+
+
+@pytest.mark.parametrize("bad, msg", [
+    (np.zeros((3, 3)), "shape"), (np.zeros((1, 2)), "at least 2"), (np.array([[0.0, 0.0], [np.nan, 1.0]]), "NaN"),
+    (np.zeros((4, 2)), "zero length"), ("abc", "floor points"), (np.zeros(4), "shape")])
+def test_check_curve_errors(bad, msg):
+    with pytest.raises(ValueError, match=msg):
+        E.check_curve(bad)
+
+
+# --- the contact term, eq. (18) -------------------------------------------------------------------
+
+
+def test_contact_energy_zero_for_a_planted_foot_and_positive_when_it_slides():
+    plane = 0.0244
+    toes = torch.zeros(1, 5, 2, 3, dtype=torch.float64)
+    toes[..., 1] = plane
+    toes[:, :, 1, 0] = torch.linspace(0, 0.4, 5)  # the right toe moves 10 cm per frame ...
+    bits = torch.tensor([[1.0, 0.0]]).expand(1, 5, 2).double().clone()  # ... but only the left is in contact
+    prev = toes[:, 0].clone()
+    assert float(E.contact_energy(toes, bits, prev, plane)) == 0.0
+    bits[..., 1] = 1.0  # now the sliding foot claims contact: 4 steps of 0.1 m
+    assert float(E.contact_energy(toes, bits, prev, plane, sigma_con=0.1)) == pytest.approx(4.0)
+    lifted = toes.clone()
+    lifted[..., 1] += 0.05  # every toe 5 cm above the plane
+    e = E.contact_energy(lifted, torch.ones(1, 5, 2, dtype=torch.float64), lifted[:, 0], plane, 1.0, 0.05)
+    assert float(e) == pytest.approx(10.0 + 4 * 0.01)  # 10 plane terms of 1, the slide of 0.1 m x 4 / 1^2
+
+
+def test_mocap_stance_costs_little_contact_energy(walk):
+    from course_lib.control.design import stance_plane
+    from course_lib.representations import encode_state_features, root_start
+
+    raw = torch.from_numpy(encode_state_features(walk))
+    toes = toe_positions(raw[1:], walk.skeleton, torch.tensor(root_start(walk), dtype=torch.float64))
+    bits = raw[1:, -2:]
+    first = toe_positions(raw[:1] * torch.cat((torch.zeros(3), torch.ones(raw.shape[1] - 3))), walk.skeleton,
+                          torch.tensor(root_start(walk), dtype=torch.float64))
+    e = E.contact_energy(toes[None], bits[None], first, stance_plane(walk))
+    slid = toes.clone()
+    slid[..., 0] += torch.arange(len(toes), dtype=torch.float64)[:, None] * 0.02  # feet skating 0.6 m/s
+    e_slid = E.contact_energy(slid[None], bits[None], first, stance_plane(walk))
+    assert float(e) / float(bits.sum()) < 0.5 < float(e_slid) / float(bits.sum())
+
+
+# --- eq. (4) in torch, and its gradient ----------------------------------------------------------
+
+
+def test_world_positions_match_the_numpy_decoder(walk):
+    from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+    f = encode_state_features(walk)
+    ref = decode_state_features(f, walk.skeleton, walk.fps, root_start(walk)).positions()
+    got = world_positions(torch.from_numpy(f[1:]), walk.skeleton, torch.tensor(root_start(walk)))
+    assert np.abs(got.numpy() - ref[1:]).max() < 1e-9
+    assert float(heading_yaw(torch.tensor([1.0, 0.0]))) == pytest.approx(math.pi / 2)  # +X is yaw pi/2
+
+
+def test_energy_gradient_through_the_integration_matches_finite_differences(walk):
+    """d E_curve / d (dx, dz, dyaw) of every frame: BPTT through eq. (4) vs central differences."""
+    from course_lib.representations import encode_state_features
+
+    raw = torch.from_numpy(encode_state_features(walk)[1:7]).clone()[None]
+    curve = torch.tensor([[0.0, 0.0], [0.3, 1.0], [0.0, 2.0]], dtype=torch.float64)
+    init = torch.tensor([0.05, 0.1, 0.2], dtype=torch.float64)
+
+    def energy(r):
+        xz, yaw = integrate_root(r[..., 0:2], r[..., 2], init)
+        toes = toe_positions(r, walk.skeleton, init)
+        return E.curve_energy(xz, curve).sum() + (toes[..., 0] ** 2).sum()  # the toes depend on yaw too
+
+    x = raw.clone().requires_grad_(True)
+    energy(x).backward()
+    h = 1e-6
+    for t in range(raw.shape[1]):
+        for c in (0, 1, 2, 10):  # dx, dz, dyaw and a joint angle
+            up, dn = raw.clone(), raw.clone()
+            up[0, t, c] += h
+            dn[0, t, c] -= h
+            fd = (energy(up) - energy(dn)) / (2 * h)
+            assert float(x.grad[0, t, c]) == pytest.approx(float(fd), rel=1e-5, abs=1e-7)
+
+
+def test_prior_gradient_matches_finite_differences(prior, walk):
+    """The RNN prior of eq. (15) with noise d: autograd vs central differences (float32 model: loose tol)."""
+    from course_lib.representations import encode_state_features
+
+    raw = prior.clean(torch.from_numpy(encode_state_features(walk)[:6]))[None]
+    prev, frames = raw[:, :2], raw[:, 2:]
+    d = torch.zeros(1, 4, prior.dim, dtype=torch.float64, requires_grad=True)
+    state = prior.start_state(prev, walk.skeleton)
+    prior.nll(prev, frames, state, walk.skeleton, d).sum().backward()
+    for t, c in ((0, 3), (1, 10), (3, 20)):
+        up, dn = d.detach().clone(), d.detach().clone()
+        up[0, t, c] += 1e-2
+        dn[0, t, c] -= 1e-2
+        fd = (prior.nll(prev, frames, state, walk.skeleton, up) - prior.nll(prev, frames, state, walk.skeleton, dn))
+        assert float(d.grad[0, t, c]) == pytest.approx(float(fd) / 2e-2, rel=0.05, abs=0.5)
+
+
+# --- PSO ---------------------------------------------------------------------------------------------
+
+
+def test_pso_finds_a_shifted_quadratic_and_rosenbrock_reproducibly():
+    shift = torch.tensor([1.0, -2.0, 3.0, 0.5], dtype=torch.float64)
+
+    def quad(x):
+        return ((x - shift) ** 2).sum(-1)
+
+    def rosen(x):
+        return (100 * (x[:, 1:] - x[:, :-1] ** 2) ** 2 + (1 - x[:, :-1]) ** 2).sum(-1)
+
+    def run(f, n, seed, its):
+        g = torch.Generator().manual_seed(seed)
+        return pso(f, torch.rand(30, n, generator=g, dtype=torch.float64) * 6 - 3, PsoConfig(iterations=its), g)
+
+    r = run(quad, 4, 0, 200)
+    assert torch.allclose(r.best, shift, atol=1e-4)
+    r1, r2 = run(rosen, 3, 1, 400), run(rosen, 3, 1, 400)
+    assert torch.equal(r1.best, r2.best) and r1.history == r2.history  # same seed, same swarm
+    assert torch.allclose(r1.best, torch.ones(3, dtype=torch.float64), atol=0.1) and r1.best_loss < 1e-2
+    assert all(a >= b for a, b in zip(r1.history[:-1], r1.history[1:], strict=True))  # the best never worsens
+
+
+def test_pso_stops_when_the_loss_stalls_and_rejects_bad_losses():
+    r = pso(lambda x: (x ** 2).sum(-1) * 0 + 1.0, torch.randn(5, 2), PsoConfig(iterations=100, patience=3))
+    assert len(r.history) == 4  # start + 3 iterations without progress
+    with pytest.raises(ValueError, match="losses"):
+        pso(lambda x: x.sum(), torch.randn(5, 2))
+    with pytest.raises(ValueError, match="particles"):
+        pso(lambda x: x.sum(-1), torch.randn(5))
+
+
+# --- the model as a prior, the sampler, eq. (26) --------------------------------------------------------
+
+
+def test_rollout_with_random_noise_is_the_rnn_sampler_and_scores_its_frames(prior, walk):
+    from course_lib.control.rollout import draw_noise, rollout
+    from course_lib.representations import encode_state_features
+
+    raw = prior.clean(torch.from_numpy(encode_state_features(walk)[:2]))[None]
+    state = prior.start_state(raw, walk.skeleton)
+    eps, g = draw_noise(3, 8, prior, torch.Generator().manual_seed(0))
+    frames, nll, _ = rollout(prior, raw.expand(3, -1, -1), state, eps, g, walk.skeleton)
+    again = prior.nll(raw.expand(3, -1, -1), frames, state, walk.skeleton)
+    assert torch.allclose(nll, again.double(), rtol=1e-3, atol=0.5)  # the rollout's NLL is eq. (15) of its frames
+    bits = frames[..., prior.contact_cols]
+    assert set(bits.unique().tolist()) <= {0.0, 1.0}
+    smooth, _, _ = rollout(prior, raw.expand(3, -1, -1), state, eps * 0, g, walk.skeleton)
+    assert float(prior.nll(raw.expand(3, -1, -1), smooth, state, walk.skeleton).mean()) < float(again.mean())
+
+
+def test_initial_state_estimate_lowers_eq26_and_the_first_frame_hop(prior, walk):
+    from course_lib.control.initial_state import estimate_initial_state, initial_state_nll
+    from course_lib.representations import encode_state_features
+
+    raw = prior.clean(torch.from_numpy(encode_state_features(walk)[5:7]))[None]
+    zero = float(initial_state_nll(prior, raw, None, walk.skeleton))
+    state, hist = estimate_initial_state(prior, raw, walk.skeleton, steps=40)
+    assert float(initial_state_nll(prior, raw, state, walk.skeleton)) < zero - 10
+    with pytest.raises(ValueError, match="first"):
+        estimate_initial_state(prior, raw[:, :1], walk.skeleton)
+
+
+# --- the public entry points ----------------------------------------------------------------------------
+
+
+def test_design_motion_follows_a_line(prior, walk):
+    from course_lib.control import DesignConfig, design_motion
+
+    curve = np.array([[1.0, 0.0], [1.0 + 4 * math.sin(0.3), 4 * math.cos(0.3)]])
+    m = design_motion(curve, 2.0, start=walk, seed=0, prior=prior, config=DesignConfig.tiny())
+    assert len(m) == 60 and m.fps == 30.0
+    assert np.allclose(m.root_positions[0, [0, 2]], curve[0])
+    _, dist = E.nearest_on_polyline(torch.from_numpy(m.root_positions[:, [0, 2]]), torch.from_numpy(curve))
+    assert float(dist.mean()) < 0.15
+    travelled = np.linalg.norm(m.root_positions[-1, [0, 2]] - curve[0])
+    assert travelled > 1.0  # it walks along the line, not on the spot
+
+
+def test_design_motion_errors(prior, walk):
+    from course_lib.control import design_motion
+
+    with pytest.raises(ValueError, match="at least 2"):
+        design_motion([[0, 0]], 2.0, prior=prior, start=walk)
+    with pytest.raises(ValueError, match="NaN"):
+        design_motion([[0, 0], [np.nan, 1]], 2.0, prior=prior, start=walk)
+    with pytest.raises(ValueError, match="seconds"):
+        design_motion([[0, 0], [0, 1]], -1.0, prior=prior, start=walk)
+    with pytest.raises(ValueError, match="unknown gait"):
+        from course_lib.control.starts import held_out_clips
+        held_out_clips("moonwalk")
+    with pytest.raises(ValueError, match="Motion"):
+        design_motion([[0, 0], [0, 1]], 1.0, prior=prior, start=np.zeros((2, 68)))
+
+
+def test_online_controller_holds_the_commanded_speed(prior, walk):
+    from course_lib.control import OnlineConfig, OnlineController
+
+    c = OnlineController(start=walk, prior=prior, config=OnlineConfig())
+    speeds = []
+    for target in (0.8, 0.8, 1.4, 1.4):
+        m = c.step(target, c.heading)
+        assert len(m) == c.config.batch
+        speeds.append(np.linalg.norm(np.diff(m.root_positions[:, [0, 2]], axis=0), axis=1).mean() * 30)
+    assert abs(speeds[1] - 0.8) < 0.15 and abs(speeds[3] - 1.4) < 0.2
+    assert len(c.motion()) == 2 + 4 * c.config.batch
+    with pytest.raises(ValueError, match="speed"):
+        c.step(-1.0, 0.0)
+
+
+def test_denoise_errors(prior, walk):
+    from course_lib.control import denoise
+
+    with pytest.raises(ValueError, match="fps"):
+        denoise(walk.resample(60.0), prior=prior)
+    with pytest.raises(ValueError, match="Motion"):
+        denoise(np.zeros((10, 68)), prior=prior)
