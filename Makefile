@@ -1,7 +1,8 @@
 # The course's commands.  Everything installs itself: on a fresh machine `make course` and
 # `make test` create .venv, install the pinned packages and generate the data first.
 #
-#   make course      execute every notebook (COURSE_MODE=class unless given) into site/*.html + site/index.html (MathJax in site/: works offline)
+#   make course      execute every notebook (COURSE_MODE=class unless given), build the site in site/ (Sphinx; offline)
+#   make site        build the site in site/ from the committed notebooks (executed in CI mode), no execution
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
 #   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
 #   make data        the synthetic datasets in data/ (kept once made; `rm -r data` to regenerate)
@@ -27,10 +28,10 @@ DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 # the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
 HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
-.PHONY: help setup data course test lint unit nbval reproduce student student-copies bench clean distclean
+.PHONY: help setup data course site test lint unit nbval reproduce student student-copies bench clean distclean
 
 help:
-	@sed -n '4,13p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,14p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)
@@ -57,18 +58,24 @@ data/locomotion_noisy.npz: data/locomotion.npz | $(STAMP)
 	$(PY) data_scripts/make_noisy.py --input $< --out $@
 
 # ---- the course --------------------------------------------------------------------------------
-# Executes copies of the notebooks (the committed ones are never overwritten) into site/ as HTML.
+# Executes copies of the notebooks (the committed ones are never overwritten) into build/executed/,
+# then builds the site from them (tools/build_site.py: Sphinx + MyST-NB + the book theme, MathJax served
+# from site/_static: works offline).  `make site` builds it from the committed notebooks (executed in
+# CI mode) without executing anything.
 course: setup data
-	@mkdir -p site; failed=""; \
+	@mkdir -p build/executed; failed=""; rm -f build/executed/*.ipynb; \
 	for nb in $(NOTEBOOKS); do \
 	  start=$$(date +%s); echo "course: $$nb (COURSE_MODE=$(COURSE_MODE))"; \
-	  if env -u MPLBACKEND COURSE_MODE=$(COURSE_MODE) $(HEADLESS) $(VENV)/bin/jupyter nbconvert --to html --execute \
-	       --ExecutePreprocessor.timeout=1800 --output-dir site "$$nb"; then \
+	  if env -u MPLBACKEND COURSE_MODE=$(COURSE_MODE) TQDM_DISABLE=1 $(HEADLESS) $(VENV)/bin/jupyter nbconvert \
+	       --to notebook --execute --ExecutePreprocessor.timeout=1800 --output-dir build/executed "$$nb"; then \
 	    echo "course: $$nb done in $$(( $$(date +%s) - start )) s"; \
-	  else failed="$$failed $$nb"; rm -f "site/$$(basename "$${nb%.ipynb}").html"; fi; \
+	  else failed="$$failed $$nb"; rm -f "build/executed/$$(basename "$$nb")"; fi; \
 	done; \
-	$(PY) tools/build_site.py --notebooks notebooks --site site --mode $(COURSE_MODE); \
-	if [ -n "$$failed" ]; then echo "course: FAILED:$$failed" >&2; exit 1; fi
+	$(PY) tools/build_site.py --notebooks build/executed --site site --work build/site --mode $(COURSE_MODE); \
+	if [ -n "$$failed" ]; then echo "course: FAILED (not in the site):$$failed" >&2; exit 1; fi
+
+site: setup
+	$(PY) tools/build_site.py --notebooks notebooks --site site --work build/site --mode ci
 
 # ---- tests -------------------------------------------------------------------------------------
 test: lint unit nbval
@@ -106,7 +113,7 @@ bench: setup
 	$(PY) -m course_lib.bench
 
 clean:
-	rm -rf site student .pytest_cache .ruff_cache .hypothesis
+	rm -rf site build student .pytest_cache .ruff_cache .hypothesis
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 	find notebooks -name .ipynb_checkpoints -type d -prune -exec rm -rf {} +
 

@@ -188,23 +188,38 @@ def test_every_module_imports_without_side_effects(tmp_path):
     assert expected - {"course_lib.__main__"} <= set(result["modules"])
 
 
-def write_notebook(path: Path, title: str) -> None:
-    cells = [{"cell_type": "markdown", "metadata": {}, "source": [f"# {title}\n", "text"]}]
+def write_notebook(path: Path, *cells: str) -> None:
+    cells = [{"cell_type": "markdown", "metadata": {}, "source": [c]} for c in cells]
     path.write_text(json.dumps({"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
 
 
-def test_build_site_lists_lessons_in_order_and_marks_unbuilt(tmp_path):
-    notebooks, site = tmp_path / "notebooks", tmp_path / "site"
-    notebooks.mkdir()
-    site.mkdir()
-    write_notebook(notebooks / "01_vae_basics.ipynb", "Lesson 01 <VAE> basics")
-    write_notebook(notebooks / "00_data.ipynb", "Lesson 00: data")
-    (site / "00_data.html").write_text("<html></html>")
-    assert build_site.main(["--notebooks", str(notebooks), "--site", str(site), "--mode", "ci"]) == 0
-    index = (site / "index.html").read_text()
-    assert index.index("Lesson 00: data") < index.index("Lesson 01 &lt;VAE&gt; basics")
-    assert '<a href="00_data.html">Lesson 00: data</a>' in index
-    assert "01_vae_basics</code> &mdash; <em>not built</em>" in index and "COURSE_MODE=ci" in index
+HEAD = ("# Lesson 02 — A recurrent VAE (Habibie et al. 2017)\n\n"
+        "**Prerequisites:** lesson 01 (the ELBO) and\nPyTorch's LSTM.  \n**Time:** about 2 hours.\n\n"
+        "**Objectives.** After this lesson you can\n\n1. build the modified LSTM\n   (eq. 7-9);\n"
+        "2. train it.\n\nThe data are synthetic.")
+SUMMARY = ("## 12. Summary\n\n* **Built:** the VAE-LSTM.\n* **What holds** (section 5): long-horizon error\n"
+           "  stays low.\n* **What fails:** prior samples are alike.\n* **Steering:** drawn controls drift.")
+
+
+def test_build_site_reads_each_lesson_for_the_landing_page(tmp_path):
+    nb = tmp_path / "02_vae_lstm.ipynb"
+    write_notebook(nb, HEAD, "## 1. Text", SUMMARY)
+    info = build_site.lesson_info(nb)
+    assert info["title"] == "Lesson 02 — A recurrent VAE (Habibie et al. 2017)" and info["name"] == "02_vae_lstm"
+    assert info["prerequisites"] == "lesson 01 (the ELBO) and PyTorch's LSTM."  # up to **Time:**, on one line
+    assert info["time"] == "about 2 hours."
+    assert info["objectives"] == "After this lesson you can\n1. build the modified LSTM\n   (eq. 7-9);\n2. train it."
+    assert info["paper"] == ["**What holds** (section 5): long-horizon error stays low.",
+                             "**What fails:** prior samples are alike."]  # not "Built" or "Steering"
+    bare = tmp_path / "03_x.ipynb"
+    write_notebook(bare, "# Lesson 03\n\n**Objectives.** After this you can\n\n1. one thing.")
+    info3 = build_site.lesson_info(bare)
+    assert (info3["prerequisites"], info3["time"], info3["paper"]) == (None, None, [])
+    page = build_site.landing_page([info, info3], "ci")
+    assert page.index("Lesson 02 —") < page.index("## Lesson 03")  # the order given (file-name order)
+    assert "{doc}`Open the lesson <02_vae_lstm>`" in page and "* **What fails:** prior samples are alike." in page
+    assert "**Time:** (not stated in the lesson)" in page and "no paper is reproduced" in page
+    assert page.count("```{toctree}") == 1 and "\n02_vae_lstm\n03_x\n```" in page and "COURSE_MODE=ci" in page
 
 
 def test_reproduce_runs_manifest_commands_in_order(tmp_path, capsys):
@@ -252,8 +267,9 @@ def test_makefile_targets_run_the_right_commands():
         assert script in data
     assert "pip install --quiet -e \".[dev]\"" in data  # -B: the setup recipe is part of the plan
     course = dry("course", "COURSE_MODE=full")
-    assert "COURSE_MODE=full" in course and "--ExecutePreprocessor.timeout=1800 --output-dir site" in course
-    assert "tools/build_site.py" in course
+    assert "COURSE_MODE=full" in course and "--ExecutePreprocessor.timeout=1800 --output-dir build/executed" in course
+    assert "tools/build_site.py --notebooks build/executed --site site" in course
+    assert "tools/build_site.py --notebooks notebooks --site site" in dry("site")  # committed notebooks, no execution
     # Agg in a notebook kernel replaces the inline backend: the executed lessons would lose their figures
     assert "env -u MPLBACKEND" in course and "MPLBACKEND=Agg" not in course
     test = dry("test")

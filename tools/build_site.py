@@ -1,76 +1,132 @@
-"""Write site/index.html: the course's lessons in order, each linked to its executed HTML.
+"""Build the course site: Sphinx + MyST-NB + the book theme, from executed notebooks, working offline.
 
-Usage: python tools/build_site.py --notebooks notebooks --site site --mode class
+Usage: python tools/build_site.py --notebooks notebooks --site site --mode ci [--only 00_skeletons_and_rotations ...]
 
-`make course` runs it after executing every notebook into site/<name>.html.  A lesson whose
-HTML is missing (its execution failed) is listed as "not built" instead of linked.
+`make course` executes every lesson (COURSE_MODE=class) into build/executed/ and calls this on that
+folder; `make site` calls it on notebooks/ (the committed notebooks, executed in CI mode: fast).
 
-Equations work with no network: nbconvert's pages load MathJax from a CDN, so this script copies
-MathJax 2.7 into site/mathjax/ and points every page at that copy.  The copy comes from the PyPI
-package jupyter-server-mathjax (pinned in pyproject.toml, installed by `make setup`: no root, no
-apt, the same on every machine); it is MathJax 2.7, the major version whose configuration
-(`MathJax.Hub.Config`) nbconvert's HTML template writes.  tests/test_site_browser.py opens a page
-in headless chromium with the network cut and checks that no raw $...$ is left.
+Why Sphinx + MyST-NB (and not MkDocs + mkdocs-jupyter): it reads the executed notebooks as they are
+(outputs, images, the MP4 players of `render.video_html`), numbers and cross-links pages, and its
+search is a local index (searchindex.js) that works from file:// with no server and no network; the
+book theme gives the lesson navigation.  mkdocs-jupyter embeds nbconvert's own page (MathJax and
+require.js from CDNs) and Material's search needs a web worker, which file:// pages cannot start.
+
+What this script adds around sphinx-build:
+- a landing page (index.md) with each lesson's objectives, time and prerequisites and what holds or
+  fails of its paper, all read from the lesson itself (its first cell and its summary), so it cannot
+  drift from the notebooks;
+- MathJax 2.7 served from the site (_static/mathjax), copied from the PyPI package
+  jupyter-server-mathjax (pinned in pyproject.toml: no root, no apt, the same on every machine).
+tests/test_site_browser.py builds a one-lesson site with this script and opens it in headless
+chromium with the network cut.
 """
 
 from __future__ import annotations
 
 import argparse
-import html
 import json
 import re
 import shutil
+import subprocess
+import sys
+import time
 from pathlib import Path
 
-# nbconvert's default <script src=...> for MathJax (any CDN URL of MathJax is replaced)
-CDN_MATHJAX = re.compile(r'<script src="https?://[^"]*mathjax[^"]*"', re.IGNORECASE)
-# the local copy: config "TeX-AMS-MML_HTMLorMML-full" (the package ships no CommonHTML-only config) + "Safe"
-LOCAL_MATHJAX = "mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full,Safe"
-# the package ships only the STIX-Web web fonts (not MathJax's default TeX fonts): use them, never the
-# reader's locally installed fonts or the image fonts, so every page looks the same everywhere
-FONT_CONFIG = ('<script type="text/x-mathjax-config">MathJax.Hub.Config({"HTML-CSS": '
-               '{availableFonts: [], preferredFont: null, webFont: "STIX-Web", imageFont: null}});</script>\n')
+CONF_DIR = Path(__file__).resolve().parent / "site"  # conf.py
+
+
+# ----------------------------------------------------------------------------- reading a lesson
+
+
+def _markdown_cells(notebook: Path) -> list[str]:
+    cells = json.loads(notebook.read_text(encoding="utf-8")).get("cells", [])
+    out = []
+    for cell in cells:
+        if cell.get("cell_type") == "markdown":
+            source = cell.get("source", "")
+            out.append("".join(source) if isinstance(source, list) else source)
+    return out
 
 
 def lesson_title(notebook: Path) -> str:
     """The first Markdown heading of the notebook, or its file name when it has none."""
-    cells = json.loads(notebook.read_text(encoding="utf-8")).get("cells", [])
-    for cell in cells:
-        if cell.get("cell_type") != "markdown":
-            continue
-        source = cell.get("source", "")
-        text = "".join(source) if isinstance(source, list) else source
+    for text in _markdown_cells(notebook):
         for line in text.splitlines():
             if line.lstrip().startswith("#"):
                 return line.lstrip("# \t").strip()
     return notebook.stem
 
 
-def lessons(notebooks_dir: Path, site_dir: Path) -> list[dict]:
-    """One dict per notebook, in file-name order: name, title, html (file name or None)."""
-    rows = []
-    for nb in sorted(notebooks_dir.glob("[0-9]*.ipynb")):
-        page = site_dir / f"{nb.stem}.html"
-        rows.append({"name": nb.stem, "title": lesson_title(nb), "html": page.name if page.exists() else None})
-    return rows
+def _field(text: str, name: str) -> str | None:
+    """The text after **name:** up to the next bold field or blank line (one paragraph), or None."""
+    m = re.search(rf"\*\*{name}:\*\*\s*(.*?)(?=\s*\*\*[A-Z][a-z]+:\*\*|\n\s*\n|\Z)", text, re.S)
+    return " ".join(m.group(1).split()) if m else None
 
 
-def render_index(rows: list[dict], mode: str) -> str:
-    """The index page's HTML for the given lessons."""
-    items = []
-    for row in rows:
-        title = html.escape(row["title"])
-        if row["html"]:
-            items.append(f'<li><a href="{html.escape(row["html"])}">{title}</a> <code>{row["name"]}</code></li>')
+def _objectives(text: str) -> str | None:
+    """The **Objectives.** paragraph with its list (up to the first blank line after the list)."""
+    lines = text.splitlines()
+    start = next((i for i, line in enumerate(lines) if line.lstrip().startswith("**Objectives.**")), None)
+    if start is None:
+        return None
+    out, in_list = [lines[start].replace("**Objectives.**", "").strip()], False
+    for line in lines[start + 1:]:
+        if not line.strip():
+            if in_list:
+                break
+            continue
+        in_list = in_list or bool(re.match(r"\s*(\d+\.|[-*])\s", line))
+        out.append(line.rstrip())
+    return "\n".join(out).strip() or None
+
+
+def _bullets(text: str) -> list[str]:
+    """Top-level bullets of a Markdown list, each joined onto one line."""
+    items: list[str] = []
+    for line in text.splitlines():
+        if re.match(r"[*-] ", line):
+            items.append(line[2:].strip())
+        elif items and line.startswith(" ") and line.strip():
+            items[-1] += " " + line.strip()
+    return items
+
+
+def lesson_info(notebook: Path) -> dict:
+    """What the landing page says about a lesson, read from the lesson: name, title, objectives, prerequisites,
+    time (None where the lesson does not state them) and the summary's bullets on what holds and fails."""
+    cells = _markdown_cells(notebook)
+    head = cells[0] if cells else ""
+    summary = next((c for c in cells if re.match(r"\s*#+ .*Summary", c)), "")
+    verdicts = [b for b in _bullets(summary) if re.match(r"\*\*What (holds|fails|does not hold)", b)]
+    return {"name": notebook.stem, "title": lesson_title(notebook), "objectives": _objectives(head),
+            "prerequisites": _field(head, "Prerequisites"), "time": _field(head, "Time"), "paper": verdicts}
+
+
+def landing_page(rows: list[dict], mode: str) -> str:
+    """index.md (MyST) for the given lessons: a hidden toctree for the navigation, one section per lesson."""
+    out = ["# Data-driven human motion synthesis", "",
+           "A Jupyter course that builds and reproduces four papers on human motion synthesis on a laptop CPU: the "
+           "VAE-LSTM of Habibie et al. (lesson 02), the GMM-RNN with an adversarial refiner of Wang, Chai et al. "
+           "(03), the hierarchical VRNN of Ghorbani et al. (05) and MoGlow of Henter et al. (06), after the "
+           "foundations (00, 00b, 01). Each lesson page below is the executed notebook "
+           f"(`COURSE_MODE={mode}`); the notebooks themselves are in `notebooks/`, the student copies "
+           "with the exercises to solve come from `make student`. Search is at the top left; it works offline.",
+           "", "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
+    out += [r["name"] for r in rows] + ["```", ""]
+    for r in rows:
+        out += [f"## {r['title']}", "", f"{{doc}}`Open the lesson <{r['name']}>` (`{r['name']}.ipynb`)", ""]
+        out += [f"**Prerequisites:** {r['prerequisites'] or '(not stated in the lesson)'}", "",
+                f"**Time:** {r['time'] or '(not stated in the lesson)'}", ""]
+        if r["objectives"]:
+            out += ["**Objectives.** " + r["objectives"], ""]
+        if r["paper"]:
+            out += ["**Its paper, on our data:**", ""] + [f"* {b}" for b in r["paper"]] + [""]
         else:
-            items.append(f"<li>{title} <code>{row['name']}</code> &mdash; <em>not built</em></li>")
-    body = "\n".join(items) if items else "<li><em>no notebooks yet</em></li>"
-    return (
-        "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>Data-driven human motion synthesis</title>"
-        "</head>\n<body>\n<h1>Data-driven human motion synthesis &mdash; lessons</h1>\n"
-        f"<p>Executed with <code>COURSE_MODE={html.escape(mode)}</code> by <code>make course</code>.</p>\n"
-        f"<ol start='0'>\n{body}\n</ol>\n</body></html>\n"
-    )
+            out += ["**Its paper, on our data:** no paper is reproduced in this lesson (foundations).", ""]
+    return "\n".join(out)
+
+
+# ----------------------------------------------------------------------------- MathJax
 
 
 def mathjax_source() -> Path:
@@ -83,9 +139,9 @@ def mathjax_source() -> Path:
     return folder
 
 
-def copy_mathjax(site_dir: Path) -> Path:
-    """Copy MathJax into site_dir/mathjax (kept when its MathJax.js is already the same size) -> that folder."""
-    src, dst = mathjax_source(), site_dir / "mathjax"
+def copy_mathjax(static_dir: Path) -> Path:
+    """Copy MathJax into static_dir/mathjax (kept when its MathJax.js is already the same size) -> that folder."""
+    src, dst = mathjax_source(), static_dir / "mathjax"
     have, want = dst / "MathJax.js", src / "MathJax.js"
     if not (have.is_file() and have.stat().st_size == want.stat().st_size):
         shutil.rmtree(dst, ignore_errors=True)
@@ -93,32 +149,55 @@ def copy_mathjax(site_dir: Path) -> Path:
     return dst
 
 
-def localise_mathjax(page: Path) -> bool:
-    """Point one HTML page's MathJax <script> at the site's copy -> whether the page changed."""
-    text = page.read_text(encoding="utf-8")
-    new = CDN_MATHJAX.sub(lambda _: f'{FONT_CONFIG}<script src="{LOCAL_MATHJAX}"', text)
-    if new != text:
-        page.write_text(new, encoding="utf-8")
-    return new != text
+# ----------------------------------------------------------------------------- the build
+
+
+def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
+    """Fill src/ with the notebooks and the landing page -> the lessons' info."""
+    shutil.rmtree(src, ignore_errors=True)
+    src.mkdir(parents=True)
+    rows = []
+    for nb in notebooks:
+        shutil.copy2(nb, src / nb.name)
+        rows.append(lesson_info(nb))
+    (src / "index.md").write_text(landing_page(rows, mode), encoding="utf-8")
+    return rows
+
+
+def build(notebooks: list[Path], site: Path, mode: str, work: Path) -> list[dict]:
+    """sphinx-build the notebooks into site/ (html), MathJax included -> the lessons' info."""
+    rows = prepare_source(notebooks, work / "src", mode)
+    html = work / "html"  # MyST-NB writes its jupyter_execute/ beside the output folder: keep both in work/
+    cmd = [sys.executable, "-m", "sphinx", "-b", "html", "-q", "-c", str(CONF_DIR), "-d", str(work / "doctrees"),
+           str(work / "src"), str(html)]
+    subprocess.run(cmd, check=True)
+    copy_mathjax(html / "_static")
+    shutil.copytree(html, site, dirs_exist_ok=True)  # site/ may hold other files (the lessons' BVH samples)
+    return rows
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--notebooks", type=Path, default=Path("notebooks"), help="folder of the lesson notebooks")
-    parser.add_argument("--site", type=Path, default=Path("site"), help="folder of the executed HTML pages")
-    parser.add_argument("--mode", default="class", help="COURSE_MODE the pages were executed in")
+    parser.add_argument("--notebooks", type=Path, default=Path("notebooks"), help="folder of the executed lessons")
+    parser.add_argument("--site", type=Path, default=Path("site"), help="output folder (HTML)")
+    parser.add_argument("--mode", default="ci", help="COURSE_MODE the notebooks were executed in")
+    parser.add_argument("--work", type=Path, default=Path("build/site"), help="Sphinx source and cache folder")
+    parser.add_argument("--only", nargs="*", help="lesson names to include (default: every [0-9]*.ipynb)")
     args = parser.parse_args(argv)
     if not args.notebooks.is_dir():
         parser.error(f"--notebooks {args.notebooks} is not a folder")
-    args.site.mkdir(parents=True, exist_ok=True)
-    copy_mathjax(args.site)
-    changed = sum(localise_mathjax(page) for page in sorted(args.site.glob("*.html")))
-    rows = lessons(args.notebooks, args.site)
-    index = args.site / "index.html"
-    index.write_text(render_index(rows, args.mode), encoding="utf-8")
-    built = sum(row["html"] is not None for row in rows)
-    print(f"build_site: {index} lists {len(rows)} lessons, {built} built; MathJax served from {args.site}/mathjax "
-          f"({changed} pages re-pointed)")
+    notebooks = sorted(args.notebooks.glob("[0-9]*.ipynb"))
+    if args.only:
+        notebooks = [nb for nb in notebooks if nb.stem in args.only]
+        missing = set(args.only) - {nb.stem for nb in notebooks}
+        if missing:
+            parser.error(f"--only: no notebook {sorted(missing)} in {args.notebooks}")
+    if not notebooks:
+        parser.error(f"no lesson notebooks in {args.notebooks}")
+    start = time.perf_counter()
+    rows = build(notebooks, args.site, args.mode, args.work)
+    print(f"build_site: {args.site}/index.html, {len(rows)} lessons, MathJax served from "
+          f"{args.site}/_static/mathjax ({time.perf_counter() - start:.0f} s)")
     return 0
 
 
