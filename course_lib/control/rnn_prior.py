@@ -56,6 +56,7 @@ class RnnPrior:
     model: torch.nn.Module
     mean: np.ndarray
     std: np.ndarray
+    min_std: float | None = None  # a floor on the mixture's sigmas in the energy (normalised units); None: the model's
 
     @classmethod
     def from_checkpoints(cls, checkpoints: Path | None = None) -> RnnPrior:
@@ -98,6 +99,8 @@ class RnnPrior:
     def log_prob(self, targets: torch.Tensor, params: dict) -> torch.Tensor:
         """log p(x_{t+1}) (...) of targets (..., D) under one step's params (eq. 6): the model's ``log_prob``,
         or the plain mixture of eq. (6) for a GmmRnn version without one."""
+        if self.min_std is not None:  # a broader prior: sigma >= min_std (see denoise.py)
+            params = dict(params, log_sigma=params["log_sigma"].clamp(min=float(np.log(self.min_std))))
         if hasattr(self.model, "log_prob"):
             return self.model.log_prob(targets, params)
         from course_lib.models.gmm_rnn import mixture_log_prob
@@ -156,6 +159,18 @@ class RnnPrior:
             inputs = inputs + d.float()
         state = expand_state(state, len(frames))
         params, _ = self.model(inputs, state)
+        return -self.log_prob(targets, params).sum(-1)
+
+    @torch.no_grad()
+    def predictions(self, prev: torch.Tensor, frames: torch.Tensor, state, skeleton: Skeleton) -> dict:
+        """The mixture parameters of every frame given the frames before it, held fixed (no gradient):
+        prev (N, P, D), frames (N, T, D) raw -> params with (N, T, ...) entries."""
+        inputs, _ = self._inputs(prev, frames, skeleton)
+        return self.model(inputs, expand_state(state, len(frames)))[0]
+
+    def nll_given(self, prev: torch.Tensor, frames: torch.Tensor, params: dict, skeleton: Skeleton) -> torch.Tensor:
+        """Eq. (15) with the mixtures fixed (`predictions`): -log p of each frame under its given mixture -> (N,)."""
+        _, targets = self._inputs(prev, frames, skeleton)
         return -self.log_prob(targets, params).sum(-1)
 
     def advance(self, prev: torch.Tensor, frames: torch.Tensor, state, skeleton: Skeleton,

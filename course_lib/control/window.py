@@ -97,8 +97,8 @@ class WindowEnergy:
         from course_lib.control.rollout import rollout
 
         N = len(eps)
-        raw, nll, _ = rollout(self.prior, self.prev.expand(N, -1, -1), expand_state(self.state, N), eps, gumbel,
-                              self.skeleton, d, bias)
+        raw, nll, self.last_state = rollout(self.prior, self.prev.expand(N, -1, -1), expand_state(self.state, N),
+                                            eps, gumbel, self.skeleton, d, bias)  # last_state: after frames[:-1]
         return raw, self.terms(raw, d, nll)
 
     def end_pose(self, raw: torch.Tensor) -> torch.Tensor:
