@@ -18,7 +18,7 @@ Headless machines must set, before Python starts (the Makefile and CI do):
 This module sets no environment variable and imports pyvista only inside the
 3-D functions; every Plotter is created with `off_screen=True`.
 
-2-D (scikit-image, no GL): `stick_figure`, `stick_strip`, `stick_gif` draw
+2-D (scikit-image, no GL): `stick_figure`, `stick_strip`, `stick_mp4` (`stick_gif`) draw
 anti-aliased lines (`skimage.draw.line_aa`) and joint disks; left limbs blue,
 right limbs red, the spine grey.  `show(img)` displays an image with matplotlib
 (or a GIF's bytes with IPython), never with pyvista's notebook widgets.
@@ -765,18 +765,32 @@ def stick_strip(x, parents=None, frames=None, view: str = "side", size=(160, 120
     return np.concatenate([strip, label_band(strip.shape[1], centres, texts, font_px=max(10, size[0] // 9))], 0)
 
 
-def stick_gif(x, path=None, parents=None, view: str = "side", size=(200, 200), fps: float | None = None,
-              stride: int = 1, *, floor: bool = True, line_width: float = 3.0, joint_radius: float = 2.5) -> bytes:
-    """An animated stick figure (the view follows the character) -> GIF bytes; writes `path` when given."""
+def stick_frames(x, parents=None, view: str = "side", size=(200, 200), stride: int = 1, *, floor: bool = True,
+                 line_width: float = 3.0, joint_radius: float = 2.5) -> tuple[np.ndarray, float]:
+    """The frames of an animated stick figure (the view follows the character) -> ((F, H, W, 3) uint8, fps)."""
     clip = as_clip(x, parents)
     size = _check_size(size)
     if stride < 1:
-        raise ValueError(f"stick_gif: stride must be >= 1, got {stride}")
+        raise ValueError(f"stick animation: stride must be >= 1, got {stride}")
     frames = np.arange(0, len(clip.positions), stride)
     mappings = _follow_frames(clip, frames, view, size, floor)
     images = [_render_2d(project(clip.positions[f], view), clip, fr, view, floor, line_width, joint_radius)
               for f, fr in zip(frames, mappings, strict=True)]
-    return _write_gif(images, fps or (clip.fps / stride if clip.fps else 30.0), path)
+    return np.stack(images), (clip.fps / stride if clip.fps else 30.0)
+
+
+def stick_gif(x, path=None, parents=None, view: str = "side", size=(200, 200), fps: float | None = None,
+              stride: int = 1, **kw) -> bytes:
+    """An animated stick figure -> GIF bytes (only where no video player can be used); writes `path` when given."""
+    images, clip_fps = stick_frames(x, parents, view, size, stride, **kw)
+    return _write_gif(images, fps or clip_fps, path)
+
+
+def stick_mp4(x, path=None, parents=None, view: str = "side", size=(240, 240), fps: float | None = None,
+              stride: int = 1, **kw) -> bytes:
+    """An animated stick figure -> H.264 MP4 bytes (`video_html` plays it); writes `path` when given."""
+    images, clip_fps = stick_frames(x, parents, view, size, stride, **kw)
+    return write_mp4(images, fps or clip_fps, path)
 
 
 # ----------------------------------------------------------------------------- display

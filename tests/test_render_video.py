@@ -139,3 +139,13 @@ def test_render_rows_mp4_stacks_rows_cut_to_the_shortest():
     assert frames.shape == (3, 192, 160, 3)  # two rows of 96 px, the second clip's 3 frames
     with pytest.raises(ValueError, match="label rows"):
         render.render_rows_mp4([[walk(3)]], labels=[["a"], ["b"]])
+
+
+def test_stick_mp4_has_the_gif_frames():
+    m = walk(13)
+    video = render.read_mp4(render.stick_mp4(m, size=(64, 80), stride=4))
+    gif = render.read_gif(render.stick_gif(m, size=(64, 80), stride=4))
+    assert video.shape == (4, 64, 80, 3) and gif.shape == (4, 64, 80, 3)
+    assert np.abs(video.astype(int) - gif).mean() < 8  # the same drawings, H.264's loss aside
+    with pytest.raises(ValueError, match="stride"):
+        render.stick_mp4(m, stride=0)
