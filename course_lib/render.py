@@ -28,7 +28,9 @@ Taught in notebooks/00_skeletons_and_rotations.ipynb; used by every lesson.
 
 from __future__ import annotations
 
+import contextlib
 import io
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -545,6 +547,14 @@ def render_rows_mp4(rows, labels=None, colors=None, stride: int = 1, parents=Non
     return write_mp4(np.concatenate([v[:n] for v, _ in videos], axis=1), fps or videos[0][1], path)
 
 
+@contextlib.contextmanager
+def _ffmpeg_quietly():
+    """ffmpeg runs as a subprocess (fork + exec at once: safe); JAX, once imported, warns at every fork."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
+        yield
+
+
 def write_mp4(images, fps: float, path=None, quality: float = 5.0) -> bytes:
     """(F, H, W, 3) uint8 frames -> H.264 MP4 bytes (yuv420p, faststart: plays in every browser).
 
@@ -563,12 +573,14 @@ def write_mp4(images, fps: float, path=None, quality: float = 5.0) -> bytes:
     fd, tmp = tempfile.mkstemp(suffix=".mp4")
     os.close(fd)
     try:
-        writer = imageio_ffmpeg.write_frames(tmp, (W + pw, H + ph), fps=float(fps), codec="libx264", quality=quality,
-                                             macro_block_size=16, output_params=["-movflags", "+faststart"])
-        writer.send(None)  # start ffmpeg
-        for img in images:
-            writer.send(np.ascontiguousarray(img))
-        writer.close()
+        with _ffmpeg_quietly():
+            writer = imageio_ffmpeg.write_frames(tmp, (W + pw, H + ph), fps=float(fps), codec="libx264",
+                                                 quality=quality, macro_block_size=16,
+                                                 output_params=["-movflags", "+faststart"])
+            writer.send(None)  # start ffmpeg
+            for img in images:
+                writer.send(np.ascontiguousarray(img))
+            writer.close()
         with open(tmp, "rb") as fh:
             data = fh.read()
     finally:
@@ -590,10 +602,11 @@ def read_mp4(data: bytes) -> np.ndarray:
     with os.fdopen(fd, "wb") as fh:
         fh.write(data)
     try:
-        reader = imageio_ffmpeg.read_frames(tmp)
-        meta = next(reader)
-        W, H = meta["size"]
-        frames = [np.frombuffer(f, np.uint8).reshape(H, W, 3) for f in reader]
+        with _ffmpeg_quietly():
+            reader = imageio_ffmpeg.read_frames(tmp)
+            meta = next(reader)
+            W, H = meta["size"]
+            frames = [np.frombuffer(f, np.uint8).reshape(H, W, 3) for f in reader]
     finally:
         os.remove(tmp)
     return np.stack(frames)

@@ -149,3 +149,15 @@ def test_stick_mp4_has_the_gif_frames():
     assert np.abs(video.astype(int) - gif).mean() < 8  # the same drawings, H.264's loss aside
     with pytest.raises(ValueError, match="stride"):
         render.stick_mp4(m, stride=0)
+
+
+def test_write_mp4_does_not_warn_about_fork_once_jax_runs():
+    import warnings
+
+    import jax.numpy as jnp
+
+    jnp.ones(3).block_until_ready()  # JAX's threads are up: it now warns at every os.fork
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        render.read_mp4(render.write_mp4(np.zeros((2, 32, 32, 3), np.uint8), fps=5))
+    assert not [w for w in caught if "fork" in str(w.message)]
