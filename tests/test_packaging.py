@@ -110,17 +110,23 @@ for lib in third_party:
     importlib.import_module(lib)
 import numpy as np, torch
 
-def files(roots):
-    # new files only, and not source: teammates may be editing course_lib while this runs
-    found = {}
-    for root in roots:
-        for folder, dirs, names in os.walk(root):
-            dirs[:] = [d for d in dirs if d != "__pycache__"]
-            found.update((os.path.join(folder, n), "") for n in names if not n.endswith((".py", ".pyc")))
-    return found
+# files this process opens for writing under the watched folders (an audit hook sees only this process:
+# other tests running beside this one may write data/ caches meanwhile, and teammates may edit course_lib)
+roots = [os.path.realpath(r) + os.sep for r in watched]
+written = {}
+
+def audit(event, args):
+    if event == "open" and args and isinstance(args[0], (str, bytes, os.PathLike)):
+        path, mode, flags = args[0], args[1] or "", args[2] or 0
+        writes = any(ch in str(mode) for ch in "wax+") or flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT)
+        full = os.path.realpath(os.fsdecode(path))
+        if writes and any(full.startswith(r) for r in roots) and "__pycache__" not in full:
+            written[full] = ""
+
+sys.addaudithook(audit)
 
 def state():
-    return {"files": files(watched), "env": dict(os.environ), "np_rng": repr(np.random.get_state()),
+    return {"files": dict(written), "env": dict(os.environ), "np_rng": repr(np.random.get_state()),
             "torch_seed": torch.initial_seed(), "torch_dtype": str(torch.get_default_dtype()),
             "torch_threads": torch.get_num_threads(), "cwd": os.getcwd()}
 
