@@ -10,14 +10,16 @@ Sliding windows of 34 frames overlapping by 17 ("spatial temporal optimisation")
 3. L-BFGS (lbfgs.py) on the frames (through the sampler's noise) and d, gradients by BPTT through eq. (4),
 then keep the window's first 17 frames and read them into the RNN.
 
-Differs from the paper: eq. (17) alone is met by standing at the curve's start (the RNN's most likely motion is a
-slow shuffle: 1.3 m in 4 s on a 6-m line, 5 cm off it), so a progress term asks each window's mean root speed to be
-the curve's length / seconds, eq. (22)'s form with sigma_speed = 0.1 m/s, summed per frame. sigma_fit^2 = 0.01 m^2
-(the paper: 0.5): against our prior's scale 0.5 let a 4-s walk along a 6-m line drift 0.60 m from it on average,
-0.01 kept it to 0.09 m (seed 0). The number of candidates, PSO and L-BFGS iterations are not given; ours are in
-`DesignConfig`. The variables are the RNN sampler's
-noise (eps, Gumbel) and d, not the frames themselves (rollout.py says why); L-BFGS holds the Gumbel variables
-(the mixture components) fixed.
+Differs from the paper: each window measures eq. (17) against the stretch of the curve from the arc length reached
+so far to what the window can cover (`energy.arc_position`, `polyline_between`; the arc length reached never
+decreases): with the whole curve a walk along an S-curve turned back and ended 6.9 m from the curve's end, and a
+closed circle is ambiguous at its start. Eq. (17) alone is met by standing at the curve's start (the RNN's most
+likely motion is a slow shuffle: 1.3 m in 4 s on a 6-m line, 5 cm off it), so a progress term asks each window's
+mean root speed to be the curve's length / seconds, eq. (22)'s form with sigma_speed = 0.1 m/s, summed per frame.
+sigma_fit^2 = 0.01 m^2 (the paper: 0.5): against our prior's scale 0.5 let a 4-s walk along a 6-m line drift 0.60 m
+from it on average, 0.01 kept it to 0.09 m (seed 0). The number of candidates, PSO and L-BFGS iterations are not
+given; ours are in `DesignConfig`. The variables are the RNN sampler's noise (eps, Gumbel) and d, not the frames
+themselves (rollout.py says why); L-BFGS holds the Gumbel variables (the mixture components) fixed.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from course_lib.control.energy import check_curve, curve_energy
+from course_lib.control.energy import arc_position, check_curve, curve_energy, polyline_between
 from course_lib.control.kinematics import heading_yaw, integrate_root
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
 from course_lib.control.pso import PsoConfig, pso
@@ -127,17 +129,23 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
     first = seg[np.linalg.norm(seg, axis=1) > 1e-9][0]
     init0 = (c[0, 0], c[0, 1], float(heading_yaw(torch.from_numpy(first))))
     raw0, init0, start_m = prepare_start(start, gait, seed, init0, prior, fps)
-    curve_t = torch.from_numpy(c)
-
     speed = float(np.linalg.norm(seg, axis=1).sum() / seconds) if config.speed is None else config.speed
 
-    def control(xz, yaw, raw):
-        e = curve_energy(xz, curve_t, config.sigma_fit2)
-        if config.sigma_speed is not None:  # the progress term (not in the paper, see "differs")
-            from course_lib.control.online import speed_energy
+    reach = 2.0 * config.window * speed / fps + 0.5  # m of curve a window can cover, with room to spare
+    progress = [0.0]  # arc length reached so far: it only grows
 
-            e = e + speed_energy(xz[:, 1:], xz[:, 0], speed, fps, config.sigma_speed) * (xz.shape[1] - 1)
-        return e
+    def control(init):  # eq. (17) on the curve just ahead of the window's start (see "differs"), + progress
+        from course_lib.control.online import speed_energy
+
+        progress[0] = arc_position(c, init[:2].numpy(), progress[0], progress[0] + reach)
+        curve_t = torch.from_numpy(polyline_between(c, progress[0], progress[0] + reach))
+
+        def energy(xz, yaw, raw):
+            e = curve_energy(xz, curve_t, config.sigma_fit2)
+            if config.sigma_speed is not None:  # the progress term (not in the paper, see "differs")
+                e = e + speed_energy(xz[:, 1:], xz[:, 0], speed, fps, config.sigma_speed) * (xz.shape[1] - 1)
+            return e
+        return energy
 
     frames, info = solve_windows(prior, start_m, raw0, _second_pose(raw0, init0), control,
                                  max(int(round(seconds * fps)), 3) - 2, config, seed)
@@ -152,7 +160,8 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
 def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: torch.Tensor, control, total: int,
                   config: DesignConfig, seed: int) -> tuple[torch.Tensor, dict]:
     """The sliding-window MAP of sec. 5.2 for ``total`` frames after the two start frames raw0 (1, 2, D), frame 1
-    at init1 -> (raw frames (total, D), info)."""
+    at init1; control(init) -> the control energy of a window whose previous frame is at init = (x, z, yaw)
+    -> (raw frames (total, D), info)."""
     t0 = time.perf_counter()
     g = torch.Generator().manual_seed(seed)
     skel, plane = start_m.skeleton, stance_plane(start_m)
@@ -160,7 +169,7 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
     state = prior.start_state(raw0, skel)
     out, carry, windows, done = [], None, [], 0
     while done < total:
-        energy = WindowEnergy(prior, skel, prev, state, init, control, plane)
+        energy = WindowEnergy(prior, skel, prev, state, init, control(init), plane)
         raw, u, hist = _solve_window(energy, carry, config, g)
         left = total - done
         k = config.hop if left > config.window else min(left, config.window)

@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-__all__ = ["SIGMA_FIT2", "SIGMA_CON", "SIGMA_CON_Y", "check_curve", "nearest_on_polyline", "curve_energy",
+__all__ = ["SIGMA_FIT2", "SIGMA_CON", "SIGMA_CON_Y", "check_curve", "nearest_on_polyline", "arc_lengths",
+           "polyline_between", "arc_position", "curve_energy",
            "contact_energy"]
 
 SIGMA_FIT2 = 0.5  # sigma_fit^2 of eq. (17), m^2: the paper's setting
@@ -59,6 +60,34 @@ def nearest_on_polyline(points: torch.Tensor, curve: torch.Tensor) -> tuple[torc
     k = dist2.argmin(-1, keepdim=True)  # (..., 1)
     near = c.gather(-2, k[..., None].expand(*k.shape, 2))[..., 0, :]
     return near, dist2.gather(-1, k)[..., 0].clamp(min=0).sqrt()
+
+
+def arc_lengths(curve: np.ndarray) -> np.ndarray:
+    """curve (K, 2) -> (K,) the arc length at each vertex, from 0."""
+    return np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))))
+
+
+def polyline_between(curve: np.ndarray, s0: float, s1: float) -> np.ndarray:
+    """The part of the polyline (K, 2) between arc lengths s0 < s1 (clipped to the curve) -> (M, 2), M >= 2."""
+    c = np.asarray(curve, np.float64)
+    s = arc_lengths(c)
+    s0, s1 = float(np.clip(s0, 0, s[-1])), float(np.clip(s1, 0, s[-1]))
+    at = [np.array([np.interp(v, s, c[:, 0]), np.interp(v, s, c[:, 1])]) for v in (s0, s1)]
+    inner = c[(s > s0) & (s < s1)]
+    out = np.concatenate((at[0][None], inner, at[1][None]), 0)
+    return out if s1 - s0 > 1e-9 else np.stack((at[0], at[0] + 1e-6))  # a stub at the end
+
+
+def arc_position(curve: np.ndarray, point, s0: float = 0.0, s1: float = np.inf) -> float:
+    """The arc length of the point of the polyline nearest to ``point`` (2,), among arc lengths [s0, s1]."""
+    part = polyline_between(curve, s0, min(s1, arc_lengths(curve)[-1]))
+    near, _ = nearest_on_polyline(torch.as_tensor(np.asarray(point, np.float64))[None], torch.from_numpy(part))
+    near = near[0].numpy()
+    seg_start = arc_lengths(part)
+    a, b = part[:-1], part[1:]
+    t = np.clip(((near - a) * (b - a)).sum(-1) / np.maximum(((b - a) ** 2).sum(-1), 1e-12), 0, 1)
+    k = int(np.argmin(np.linalg.norm(a + t[:, None] * (b - a) - near, axis=1)))
+    return float(max(s0, 0.0) + seg_start[k] + t[k] * np.linalg.norm(b[k] - a[k]))
 
 
 def curve_energy(root_xz: torch.Tensor, curve: torch.Tensor, sigma_fit2: float = SIGMA_FIT2) -> torch.Tensor:
