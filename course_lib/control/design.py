@@ -135,15 +135,14 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
     progress = [0.0]  # arc length reached so far: it only grows
 
     def control(init):  # eq. (17) on the curve just ahead of the window's start (see "differs"), + progress
-        from course_lib.control.online import speed_energy
-
         progress[0] = arc_position(c, init[:2].numpy(), progress[0], progress[0] + reach)
         curve_t = torch.from_numpy(polyline_between(c, progress[0], progress[0] + reach))
 
         def energy(xz, yaw, raw):
             e = curve_energy(xz, curve_t, config.sigma_fit2)
             if config.sigma_speed is not None:  # the progress term (not in the paper, see "differs")
-                e = e + speed_energy(xz[:, 1:], xz[:, 0], speed, fps, config.sigma_speed) * (xz.shape[1] - 1)
+                net = (xz[:, -1] - xz[:, 0]).norm(dim=-1) * fps / (xz.shape[1] - 1)  # (N,) m/s, net displacement
+                e = e + (net - speed) ** 2 / config.sigma_speed ** 2 * (xz.shape[1] - 1)
             return e
         return energy
 
