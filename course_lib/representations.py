@@ -38,6 +38,10 @@ Conventions, stated once:
   Velocities are per second (displacement x fps) in positions_control and
   quaternion_root, per frame in state_features (as in the paper).
 
+Lesson 03's RNN reads the state features *anchored on the feet* (`anchor_on_feet` / `unanchor_feet`,
+torch, on a given skeleton): the root's floor step replaced by the slip of the lower toe, the root height by
+the lower toe's height.  `local_positions` is the torch FK of the state features in each frame's floor frame.
+
 Every encoder returns float64; round trips reproduce joint positions to
 float64 precision (tests/test_representations.py checks 1e-4 m).
 
@@ -349,3 +353,82 @@ def motion_from_positions(positions, skeleton: Skeleton, fps: float) -> Motion:
     local = np.swapaxes(parents_G, -1, -2) @ G  # R_local = G_parent^T G
     rotations = quat_canonical(matrix_to_quat(torch.from_numpy(local))).numpy()
     return Motion(rotations, p[:, 0].copy(), skeleton, fps)
+
+
+# --- state_features in torch, and anchored on the feet (lesson 03's RNN) -----------------
+
+
+def _check_state_tensor(features, skeleton: Skeleton, name: str = "features") -> None:
+    D = feature_dim("state_features", skeleton.num_joints)
+    if not torch.is_tensor(features) or features.ndim < 2 or features.shape[-1] != D:
+        shape = tuple(features.shape) if torch.is_tensor(features) else type(features).__name__
+        raise ValueError(f"{name} must be (..., T, {D}) state features for {skeleton.num_joints} joints, got {shape}")
+    if not torch.isfinite(features).all():
+        raise ValueError(f"{name} contains NaN or inf")
+
+
+def local_positions(features: torch.Tensor, skeleton: Skeleton, offsets: torch.Tensor | None = None) -> torch.Tensor:
+    """Raw state features (..., T, D) -> joint positions (..., T, J, 3) in each frame's floor frame
+    (origin under the root, +Z the heading): FK of R_x(pitch) R_z(roll), the expmaps, root height.
+    offsets: rest offsets (J, 3) for every motion, or (..., J, 3) one skeleton per motion (default: skeleton's)."""
+    from course_lib.skeleton import forward_kinematics
+
+    _check_state_tensor(features, skeleton)
+    root_tilt = torch.stack((torch.zeros_like(features[..., 4]), features[..., 4], features[..., 5]), -1)
+    root_q = euler_to_quat(root_tilt, "YXZ")  # (..., T, 4): R_y(0) R_x(pitch) R_z(roll)
+    theta = features[..., 6:-2].unflatten(-1, (skeleton.num_joints - 1, 3))  # (..., T, J-1, 3)
+    q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J, 4)
+    root = torch.stack((torch.zeros_like(features[..., 3]), features[..., 3], torch.zeros_like(features[..., 3])), -1)
+    off = torch.as_tensor(skeleton.offsets, dtype=features.dtype) if offsets is None else \
+        torch.as_tensor(offsets).to(features.dtype)
+    if off.dim() == features.dim():  # one skeleton per motion: (..., J, 3) -> (..., 1, J, 3), shared by its frames
+        off = off.unsqueeze(-3)
+    return forward_kinematics(q, root, off, skeleton.parents)[0]
+
+
+def _turn(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+    """(x, z) vectors (..., 2), yaw (...) -> R_y(yaw) v (torch `_to_world`)."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
+
+
+def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets) -> tuple[torch.Tensor, torch.Tensor,
+                                                                                    torch.Tensor]:
+    """-> lowest toe height above the root (..., T), the anchor toe's floor-frame (x, z) on frames t-1 and t
+    (..., T-1, 2) each: the anchor of step t is the toe that is lower on frame t-1."""
+    flat = features.clone()
+    flat[..., 3] = 0.0  # FK relative to the root's height: the pose alone decides the feet
+    rel = local_positions(flat, skeleton, offsets)  # (..., T, J, 3)
+    toes = rel[..., [skeleton.index("LeftToeBase"), skeleton.index("RightToeBase")], :]  # (..., T, 2, 3)
+    low = toes[..., 1].argmin(-1, keepdim=True)  # (..., T, 1)
+    pick = low[..., :-1, :, None].expand(*low.shape[:-2], low.shape[-2] - 1, 1, 3)  # (..., T-1, 1, 3)
+    prev = toes[..., :-1, :, :].gather(-2, pick)[..., 0, :][..., [0, 2]]  # anchor on t-1
+    cur = toes[..., 1:, :, :].gather(-2, pick)[..., 0, :][..., [0, 2]]  # the same toe on t
+    return toes[..., 1].min(-1).values, prev, cur
+
+
+def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None) -> torch.Tensor:
+    """Raw state features (..., T, D) -> the same with the root tied to the feet (lesson 03's RNN reads these):
+
+    column 3, the root height, becomes the lower toe's height above the floor, h_t = y_root + min_toe y_rel
+    (about 0 on every subject while a foot is down); columns 0-1, the floor displacement d_t, become the slip
+    of the anchor toe (the lower one on frame t-1), s_t = R_y(dyaw_t) p_t + d_t - p_{t-1} with p its floor-frame
+    (x, z) (the toe's own displacement, as `refiner.end_effector_features`; about 0 while it is planted).
+    Row 0 keeps d_0 (decoders ignore it).  Exactly inverted by `unanchor_feet` on the same skeleton."""
+    _check_state_tensor(features, skeleton)
+    low, prev, cur = _feet_geometry(features, skeleton, offsets)
+    out = features.clone()
+    out[..., 3] = features[..., 3] + low
+    out[..., 1:, 0:2] = _turn(cur, features[..., 1:, 2]) + features[..., 1:, 0:2] - prev
+    return out
+
+
+def unanchor_feet(anchored: torch.Tensor, skeleton: Skeleton, offsets=None) -> torch.Tensor:
+    """The inverse of `anchor_on_feet`: (..., T, D) feet-anchored features -> raw state features, on the skeleton
+    (offsets (J, 3), or (..., J, 3) one per motion) that decides where the toes are."""
+    _check_state_tensor(anchored, skeleton, "anchored")
+    low, prev, cur = _feet_geometry(anchored, skeleton, offsets)
+    out = anchored.clone()
+    out[..., 3] = anchored[..., 3] - low
+    out[..., 1:, 0:2] = anchored[..., 1:, 0:2] + prev - _turn(cur, anchored[..., 1:, 2])
+    return out

@@ -197,3 +197,41 @@ def test_self_feed_uses_own_samples_only_in_training():
     assert torch.allclose(m2.loss(x)["nll"], m.loss(x)["nll"], atol=1e-5)
     with pytest.raises(ValueError, match="self_feed"):
         GmmRnnConfig(self_feed=(0, 3))
+
+
+def test_fixed_columns_are_not_modelled_and_carry_over():
+    """fixed_dims: the NLL ignores them (a constant column cannot buy likelihood at the sigma floor) and
+    generation copies them from the input frame."""
+    torch.manual_seed(0)
+    m = GmmRnn(tiny(fixed_dims=(10, 11))).eval()
+    x = torch.randn(2, 6, 68)
+    y = x.clone()
+    y[:, -1, 10:12] = 123.0  # whatever the fixed columns of a target hold does not change its likelihood
+    assert torch.allclose(m.loss(x)["nll"], m.loss(y)["nll"])
+    assert m.config.gaussian_dims == tuple(c for c in range(68) if c not in (10, 11))
+    x0 = torch.randn(3, 2, 68)
+    out = m.generate(x0, 4, generator=torch.Generator().manual_seed(0), contact_mode="none")
+    assert torch.equal(out[:, 2:, 10:12], x0[:, 1:2, 10:12].expand(3, 4, 2))
+    with pytest.raises(ValueError, match="fixed_dims"):
+        GmmRnnConfig(fixed_dims=(66,))
+
+
+def test_bernoulli_contacts_likelihood_and_samples():
+    """bernoulli_contacts: the bits' log-likelihood is Bernoulli's (torch.distributions), samples are 0/1 in raw
+    units written in the model's normalisation."""
+    torch.manual_seed(0)
+    mean, std = torch.zeros(68), torch.ones(68)
+    mean[66:], std[66:] = 0.4, 0.5  # raw bit = x * 0.5 + 0.4
+    m = GmmRnn(tiny(bernoulli_contacts=True), stats=(mean.numpy(), std.numpy())).eval()
+    assert m.out.out_features == 5 * (1 + 2 * 68) + 2 and 66 not in m.config.gaussian_dims
+    x = torch.randn(2, 5, 68)
+    x[..., 66:] = (torch.randint(0, 2, (2, 5, 2)).float() - 0.4) / 0.5  # binary bits, normalised
+    params, _ = m(x[:, :-1])
+    cols = list(m.config.gaussian_dims)
+    gauss = mixture_log_prob(x[:, 1:, cols], params["logits"], params["mu"][..., cols], params["log_sigma"][..., cols])
+    bits = (x[:, 1:, 66:] * 0.5 + 0.4 > 0.5).float()
+    bern = dist.Bernoulli(logits=params["contact_logits"]).log_prob(bits).sum(-1)
+    torch.testing.assert_close(m.log_prob(x[:, 1:], params), gauss + bern)
+    out = m.generate(x[:, :2], 6, generator=torch.Generator().manual_seed(1), contact_mode="none")
+    raw = out[:, 2:, 66:] * 0.5 + 0.4
+    assert torch.all((raw.abs() < 1e-6) | ((raw - 1).abs() < 1e-6))

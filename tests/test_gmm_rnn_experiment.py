@@ -16,7 +16,7 @@ def setup():
     torch.manual_seed(0)
     clips = generate_locomotion_set(8, seed=3, fps=30.0, duration=3.0, n_subjects=4)
     ds = WindowDataset(clips[:6], "state_features", length=50, stride=10)
-    model = GmmRnn(GmmRnnConfig.cpu(fc_width=16, lstm_width=16, out_width=16)).eval()
+    model = GmmRnn(GmmRnnConfig.cpu(fc_width=16, lstm_width=16, out_width=16), stats=ds.stats).eval()
     refiners = {name: Refiner(RefinerConfig.cpu(fc_width=8, lstm_width=8, contacts=name == "GAN2"),
                               stats=ds.stats).eval() for name in ("GAN1", "GAN2")}
     spec = X.Lesson03Spec(eval_seconds=2.0, n_random=4, random_seconds=3.0)
@@ -120,3 +120,42 @@ def test_pool_and_gan_carry_each_clips_skeleton(setup):
         R, D, h = X.train_gan(pool, ds, spec, contacts=contacts, seed=0, iterations=2, progress=False)
         assert D.fc1.in_features == 30 + 2 * contacts and R.config.discriminator_contacts == contacts
         assert h.num_steps == 2 and np.isfinite(h.step["d_loss"]).all()
+
+
+def test_feet_anchored_rnn_round_trip_and_one_step(setup):
+    """The shipped RNN reads feet-anchored features on each clip's skeleton: to_rnn / from_rnn invert each
+    other, generation starts from the given frames, one-step predictions keep frames 0-1 true."""
+    clips, ds, _, _, _ = setup
+    spec = X.Lesson03Spec(rnn_steps=3)
+    model, _, _ = X.train_rnn(ds, spec, seed=0, progress=False)
+    c = model.config
+    assert c.features == "feet_anchored" and c.bernoulli_contacts and len(c.fixed_dims) > 10
+    assert 66 not in c.gaussian_dims and not set(c.fixed_dims) & set(c.gaussian_dims)
+    x = torch.from_numpy(np.stack([(X.encode_state_features(m)[:40] - ds.stats[0]) / ds.stats[1]
+                                   for m in clips[6:]])).float()
+    off = X.clip_offsets(clips[6:])
+    y = X.to_rnn(x, ds.stats, model, off)
+    assert (X.from_rnn(y, ds.stats, model, off) - x).abs().max() < 1e-4
+    gen = X.generate(model, x[:, :2], 5, off, ds.stats, torch.Generator().manual_seed(0))
+    assert gen.shape == (2, 7, 68) and torch.equal(gen[:, :2], x[:, :2])
+    pred = X.one_step(model, [m[:40] for m in clips[6:]], ds.stats, mean=True)
+    assert pred.shape == (2, 40, 68) and (pred[:, :2] - x[:, :2]).abs().max() < 1e-4
+
+
+def test_skate_study_measures_one_model(setup):
+    """tools/gmm_rnn_skate.py (the RNN foot-skate study behind the shipped recipe): every number of one model."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "gmm_rnn_skate.py"
+    spec_ = importlib.util.spec_from_file_location("gmm_rnn_skate", path)
+    study = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(study)
+    clips, ds, *_ = setup
+    spec = X.Lesson03Spec(eval_seconds=2.0, n_random=4, random_seconds=3.0, rnn_steps=3, sample_angle_noise=0.3)
+    model, _, _ = X.train_rnn(ds, spec, seed=0, progress=False)
+    res = study.measure(model, clips[4:], ds.stats, spec)
+    for k in ("one_step_sample_skate", "one_step_mean_skate", "free_skate", "free_jitter", "free_fid"):
+        assert np.isfinite(res[k]) and res[k] >= 0, k
+    assert res["long"]["nan_motions"] == 0 and 0 <= res["long"]["in_range_motions"] <= 4
+    assert set(study.VARIANTS) >= {"before", "anchored", "anchored_noise01", "noise01_angles_03"}

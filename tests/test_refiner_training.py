@@ -93,3 +93,12 @@ def test_bad_sampler_output_is_named():
         train_refiner(R, Dn, sampler(1, 0.1), lambda: torch.zeros(4, T, 10), iterations=1, progress=False)
     with pytest.raises(ValueError, match="iterations"):
         train_refiner(R, Dn, sampler(1, 0.1), sampler(2, 0.0), iterations=-1, progress=False)
+
+
+def test_refiner_update_budget_stops_the_rounds():
+    """max_refiner_updates: training stops after the round in which R's adversarial updates reach the budget."""
+    cfg = config(warmup=2)
+    R, Dn = Refiner(cfg), Discriminator(cfg)
+    h = train_refiner(R, Dn, sampler(1, 0.1), sampler(2, 0.0), iterations=50, progress=False, max_refiner_updates=12,
+                      schedule=AdversarialSchedule(warmup=2, r_per_d=5, max_r_updates=5))
+    assert h.step["r_updates"] == [5, 5, 5]  # 15 >= 12 after the third round (r stays 5: capped, never halved)

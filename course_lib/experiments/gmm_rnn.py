@@ -8,7 +8,10 @@ stand-in for the paper's user study (Fig. 12).
 Data: lesson 02's synthetic locomotion clips (course_lib.reproduce.DataSpec: 400 clips of 4 s, 10
 subjects, 3 held out) resampled to 30 fps and encoded as ``state_features`` (eq. 3 + 2 contact bits).
 Models: the GMM-RNN (sec. 4.1), GAN1 (refiner without contact awareness) and GAN2 (contact-aware
-refiner, sec. 4.3), each refiner trained for three seeds.  Evaluation: for every held-out clip the RNN
+refiner, sec. 4.3), each refiner trained for three seeds.  The RNN reads the clips' state features anchored on
+their feet (representations.anchor_on_feet, on each clip's own skeleton; `to_rnn` / `from_rnn` / `generate`
+convert), models only the columns the data vary, with Bernoulli contact bits; R and D compute end effectors on
+each motion's own skeleton, and GAN2's D sees the contact bits.  Evaluation: for every held-out clip the RNN
 continues its first two frames for 4 s; GAN1/GAN2 refine that motion; "GAN2 + contacts" adds the
 contact handling (models/contact_cleanup.py: the predicted contacts enforced on the root).  Every row
 gets foot skate, jitter, FID, IS and the C2ST accuracy against the held-out mocap.  Long generation:
@@ -51,14 +54,28 @@ class Lesson03Spec:
     finetune: tuple = ()  # e.g. ((10, 10, 1000),); with absolute root means it hurt (tools/gmm_rnn_sweep.py)
     finetune_lr: float = 5e-4
     sample_bias: float = 2.0  # Graves' sampling bias at generation (0 = the paper's sampling)
-    # columns with absolute means: all but the root's floor velocities dx, dz, dyaw (gmm_rnn.py "differs")
-    rnn_absolute_dims: tuple = tuple(range(3, 68))
+    sample_angle_noise: float = 0.3  # scale of the per-dimension draw in the joint angles (0: component means)
+    sample_root_noise: float = 1.0  # the same for the six root columns
+    # what the RNN reads: "feet_anchored" (representations.anchor_on_feet: the root's floor step as the anchor
+    # toe's slip, the root height as the lower toe's height) or "state_features" (eq. 3 as it is)
+    rnn_features: str = "feet_anchored"
+    # columns with absolute means: the slip, the toe height, pitch and roll; dyaw and the joint angles residual
+    rnn_absolute_dims: tuple = (0, 1, 3, 4, 5)
+    rnn_fixed_dims: bool = True  # the columns the data never vary are not modelled
+    rnn_bernoulli_contacts: bool = True  # contact bits from a Bernoulli head
     contact_smooth: int = 5  # frames over which the contact handling's root corrections are averaged
     window_stride: int = 5  # frames between training windows
-    rnn_noise: float = 0.05  # sd of the input noise, normalised units (sec. 4.1.3: 0.05)
+    rnn_noise: float = 0.1  # sd of the input noise, normalised units (sec. 4.1.3: 0.05; tools/gmm_rnn_skate.py)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
-    refiner_iterations: int = 300  # adversarial rounds after the warm-up (sec. 4.2.2)
+    refiner_iterations: int = 3000  # at most this many adversarial rounds after the warm-up (sec. 4.2.2) ...
+    refiner_updates: int = 2500  # ... and at most this many adversarial R updates (the CPU budget, ~4 min)
     max_r_updates: int = 40  # cap on R's adaptive update count per round (the paper has none)
+    # the balance rule of sec. 4.2.2 on D's mean cross-entropy (chance ln 2): r doubles below d_loss_low (D far
+    # better than chance) and halves above d_loss_high (D no better than chance), on the mean of the last
+    # schedule_smooth rounds; the paper's 0.01 / 1 on single batches almost never fire on this scale
+    d_loss_low: float = 0.1
+    d_loss_high: float = 0.693
+    schedule_smooth: int = 5
     pool_sequences: int = 320  # RNN motions generated once for refiner training
     pool_frames: int = 240  # frames per pooled RNN motion (8 s)
     seeds: tuple = (0, 1, 2)  # refiner seeds, one checkpoint per seed and refiner
@@ -122,10 +139,14 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
     from course_lib.training import History, fit
 
-    config = config or GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims)
+    features, rnn_stats = rnn_features(ds, spec.rnn_features)
+    fixed = tuple(int(c) for c in np.flatnonzero(FixedDofs.from_stats(*rnn_stats).mask)) if spec.rnn_fixed_dims else ()
+    config = config or GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims,
+                                        features=spec.rnn_features, fixed_dims=fixed,
+                                        bernoulli_contacts=spec.rnn_bernoulli_contacts)
     torch.manual_seed(seed)
-    model = GmmRnn(config).to(device)
-    cpu_sample = window_sampler(ds.features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
+    model = GmmRnn(config, stats=rnn_stats).to(device)
+    cpu_sample = window_sampler(features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
 
     def sample() -> torch.Tensor:
         return cpu_sample().to(device)
@@ -147,6 +168,100 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     return model, hist, ft
 
 
+def rnn_features(ds: WindowDataset, kind: str = "feet_anchored") -> tuple[list[np.ndarray], tuple]:
+    """ds's clips in the RNN's features -> (normalised (T_i, D) float32 arrays, their (mean, std)); "state_features"
+    returns ds's own.  "feet_anchored": each clip anchored on its own skeleton (representations.anchor_on_feet)."""
+    from course_lib.datasets import compute_stats
+    from course_lib.representations import anchor_on_feet
+
+    if kind == "state_features":
+        return ds.features, ds.stats
+    raw = [anchor_on_feet(torch.from_numpy(ds.denormalize(f.astype(np.float64))), m.skeleton).numpy()
+           for f, m in zip(ds.features, ds.clips, strict=True)]
+    mean, std = compute_stats(raw)
+    return [((r - mean) / std).astype(np.float32) for r in raw], (mean, std)
+
+
+def _rnn_stats(model) -> tuple[torch.Tensor, torch.Tensor]:
+    return model.feature_mean.double(), model.feature_std.double()
+
+
+def to_rnn(x: torch.Tensor, stats, model, offsets: torch.Tensor) -> torch.Tensor:
+    """Normalised state features (N, T, D) (stats) of motions on skeletons ``offsets`` (N, J, 3) -> the model's
+    normalised features."""
+    from course_lib.representations import anchor_on_feet
+    from course_lib.skeleton import Skeleton
+
+    raw = x.double() * torch.as_tensor(stats[1]) + torch.as_tensor(stats[0])
+    if model.config.features == "feet_anchored":
+        raw = anchor_on_feet(raw, Skeleton.canonical(), offsets.double())
+    mean, std = _rnn_stats(model)
+    return ((raw - mean) / std).float()
+
+
+def from_rnn(y: torch.Tensor, stats, model, offsets: torch.Tensor) -> torch.Tensor:
+    """The inverse of `to_rnn`: the model's normalised features (N, T, D) -> normalised state features."""
+    from course_lib.representations import unanchor_feet
+    from course_lib.skeleton import Skeleton
+
+    mean, std = _rnn_stats(model)
+    raw = y.double() * std + mean
+    if model.config.features == "feet_anchored":
+        raw = unanchor_feet(raw, Skeleton.canonical(), offsets.double())
+    return ((raw - torch.as_tensor(stats[0])) / torch.as_tensor(stats[1])).float()
+
+
+def angle_noise(model, scale: float, root: float = 1.0) -> torch.Tensor | None:
+    """-> the (D,) noise_scale of GmmRnn.sample_mixture: ``scale`` on the joint angles, ``root`` on the six root
+    columns, 1 on the bits (None if all are 1)."""
+    if scale == 1.0 and root == 1.0:
+        return None
+    out = torch.ones(model.config.dim)
+    out[6:-2], out[:6] = scale, root
+    return out
+
+
+def generate(model, x0: torch.Tensor, steps: int, offsets: torch.Tensor, stats, generator=None,
+             bias: float = 2.0, angle_scale: float = 1.0, root_scale: float = 1.0) -> torch.Tensor:
+    """Sec. 4.1.4 in state features: x0 (N, 2, D) two normalised frames (stats) of motions on skeletons offsets
+    (N, J, 3) -> (N, 2 + steps, D) normalised state features; the model samples in its own features (the joint
+    angles' per-dimension draw scaled by angle_scale)."""
+    y0 = to_rnn(x0, stats, model, offsets)
+    y = model.generate(y0, steps, generator=generator, stats=_rnn_stats(model), bias=bias,
+                       noise_scale=angle_noise(model, angle_scale, root_scale))
+    return torch.cat((x0, from_rnn(y, stats, model, offsets)[:, 2:]), 1)
+
+
+def one_step(model, clips: list[Motion], stats, bias: float = 2.0, seed: int = 0, mean: bool = False,
+             angle_scale: float = 1.0, root_scale: float = 1.0) -> torch.Tensor:
+    """Teacher forcing: every frame t >= 2 of each clip predicted from the true frames before it (one sample at
+    ``bias``, or the most likely component's mean) -> normalised state features (N, T, D); frames 0-1 are true."""
+    x = torch.from_numpy(np.stack([(encode_state_features(m) - stats[0]) / stats[1] for m in clips])).float()
+    off = clip_offsets(clips)
+    y = to_rnn(x, stats, model, off)
+    g = torch.Generator().manual_seed(seed)
+    with torch.no_grad():
+        params, _ = model(y[:, :-1])  # row t: p(y_{t+1} | y_{<=t})
+        N, T1 = params["logits"].shape[:2]
+        flat = {k: v.reshape(N * T1, *v.shape[2:]) for k, v in params.items()}
+        if mean:
+            top = flat["logits"].argmax(-1)
+            pred = flat["mu"][torch.arange(len(top)), top]
+            if model.config.bernoulli_contacts:
+                cols = list(model.config.contact_dims)
+                bits = (flat["contact_logits"] > 0).to(pred.dtype)
+                pred[:, cols] = (bits - model.feature_mean[cols]) / model.feature_std[cols]
+        else:
+            pred = model.sample_mixture(flat, g, bias, angle_noise(model, angle_scale, root_scale))
+        pred = model.fix_contacts(pred.reshape(N, T1, -1), _rnn_stats(model))
+        if model.config.fixed_dims:
+            cols = list(model.config.fixed_dims)
+            pred[..., cols] = y[:, 1:, cols]
+    pred = torch.cat((y[:, :1], pred), 1)
+    pred[:, 1] = y[:, 1]
+    return from_rnn(pred, stats, model, off)
+
+
 class RnnPool(NamedTuple):
     """The RNN motions the refiners train on: features (N, T, D) normalised, offsets (N, J, 3) the rest offsets of
     the subject whose frames each motion started from."""
@@ -160,7 +275,8 @@ def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> Rnn
     the clip each one starts from."""
     g = torch.Generator().manual_seed(seed)
     x0, off = window_sampler(ds.features, 2, spec.pool_sequences, g, clip_offsets(ds.clips))()
-    feats = model.generate(x0, spec.pool_frames - 2, generator=g, stats=ds.stats, bias=spec.sample_bias)
+    feats = generate(model, x0, spec.pool_frames - 2, off, ds.stats, generator=g, bias=spec.sample_bias,
+                     angle_scale=spec.sample_angle_noise, root_scale=spec.sample_root_noise)
     return RnnPool(feats, off)
 
 
@@ -169,7 +285,7 @@ def train_gan(pool: RnnPool, ds: WindowDataset, spec: Lesson03Spec, contacts: bo
     """R and D of sec. 4.2 on random spec.refiner_window-frame crops of the RNN pool vs mocap windows, every
     motion's kinematics on its own subject's skeleton -> (refiner, discriminator, History).  contacts=False is
     GAN1, True GAN2 (sec. 4.3; its D also sees the contact bits).  schedule: an AdversarialSchedule (default: the
-    paper's rule with r capped at spec.max_r_updates)."""
+    paper's rule with spec's thresholds and smoothing, r capped at spec.max_r_updates)."""
     from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
 
     config = RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts, fps=spec.fps)
@@ -178,10 +294,11 @@ def train_gan(pool: RnnPool, ds: WindowDataset, spec: Lesson03Spec, contacts: bo
     g = torch.Generator().manual_seed(seed)
     rnn = window_sampler(list(pool.features.numpy()), spec.refiner_window, config.d_batch, g, pool.offsets)
     real = window_sampler(ds.features, spec.refiner_window, config.d_batch, g, clip_offsets(ds.clips))
-    schedule = schedule or AdversarialSchedule(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high,
-                                               max_r_updates=spec.max_r_updates)
+    schedule = schedule or AdversarialSchedule(config.warmup, config.r_per_d, spec.d_loss_low, spec.d_loss_high,
+                                               max_r_updates=spec.max_r_updates, smooth=spec.schedule_smooth)
     hist = train_refiner(refiner, disc, rnn, real, iterations=spec.refiner_iterations if iterations is None
-                         else iterations, config=config, schedule=schedule, generator=g, progress=progress)
+                         else iterations, config=config, schedule=schedule, generator=g, progress=progress,
+                         max_refiner_updates=spec.refiner_updates if iterations is None else None)
     hist.r_schedule = list(schedule.history)
     refiner.eval()
     disc.eval()
@@ -215,8 +332,8 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
     that -> {"RNN": features, name: features, ...} normalised (N, T, D)."""
     T = int(round(spec.eval_seconds * spec.fps))
     x0 = torch.from_numpy(np.stack([(encode_state_features(m)[:2] - stats[0]) / stats[1] for m in clips])).float()
-    out = {"RNN": model.generate(x0, T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
-                                 bias=spec.sample_bias)}
+    out = {"RNN": generate(model, x0, T - 2, clip_offsets(clips), stats, torch.Generator().manual_seed(seed),
+                           spec.sample_bias, spec.sample_angle_noise, spec.sample_root_noise)}
     with torch.no_grad():
         out.update({name: r(out["RNN"], clip_offsets(clips)) for name, r in refiners.items()})
     return out
@@ -274,8 +391,9 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
 
     T = int(round(spec.random_seconds * spec.fps))
     x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
-    rnn = model.generate(x0.contiguous(), T - 2, generator=torch.Generator().manual_seed(seed), stats=stats,
-                         bias=spec.sample_bias)
+    rnn = generate(model, x0.contiguous(), T - 2, clip_offsets([start] * spec.n_random), stats,
+                   torch.Generator().manual_seed(seed), spec.sample_bias, spec.sample_angle_noise,
+                   spec.sample_root_noise)
     sets = {"RNN": rnn}
     if refiner is not None:
         with torch.no_grad():
@@ -364,13 +482,16 @@ def eval_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool
 
 
 _GAN_KEYS = ("seconds", "rounds", "final_d_loss", "final_adversarial", "final_root", "final_d_acc_fake",
-             "max_r_updates_used")
+             "max_r_updates_used", "refiner_updates", "r_changes", "rounds_at_r1")
 
 
 def _gan_summary(hist) -> dict:
+    r = list(hist.step.get("r_updates", []))
     return {"seconds": hist.seconds, "rounds": hist.num_steps, "final_d_loss": hist.final("d_loss", 20),
             "final_adversarial": hist.final("adversarial", 20), "final_root": hist.final("root", 20),
-            "final_d_acc_fake": hist.final("d_acc_fake", 20), "max_r_updates_used": max(hist.r_schedule or [0])}
+            "final_d_acc_fake": hist.final("d_acc_fake", 20), "max_r_updates_used": max(hist.r_schedule or [0]),
+            "refiner_updates": int(sum(r)), "r_changes": int(np.count_nonzero(np.diff(r))),
+            "rounds_at_r1": float(np.mean([v == 1 for v in r])) if r else 0.0}
 
 
 def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool = True, only=None,

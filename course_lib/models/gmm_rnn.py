@@ -34,13 +34,24 @@ Differs from the paper:
   CPU; the paper pre-trains on CMU and fine-tunes (sec. 4.1.3), we train once on the course data.
 - ``self_feed=(k, m)`` (optional fine-tuning after teacher forcing): inputs alternate k true frames and m
   of the model's own predictions, so it learns to return from its own errors (acLSTM, Zhou et al. 2018).
+- ``fixed_dims``: columns the training data never vary (24 of the 68 in lesson 03: the knees' and elbows'
+  off-axis angles, ...) are not modelled.  At the sigma floor they contributed about -87 of an NLL of -102,
+  so the NLL said little about the legs; they are left out of eq. (8) and copied from x_t when sampling.
+- ``bernoulli_contacts``: the contact bits get their own Bernoulli head (two log-odds read out beside the
+  mixture) instead of Gaussians with a sigma floor; samples are 0/1.
+- the model keeps the normalisation of the features it reads (``feature_mean``, ``feature_std`` buffers,
+  saved with the weights), and ``features`` names them: lesson 03's RNN reads ``feet_anchored`` features
+  (representations.anchor_on_feet: the root's floor step as the anchor toe's slip, the root height as the
+  lower toe's height), so a planted foot stays planted whatever pose is predicted.
+- ``noise_scale`` at sampling (not in the paper) scales each column's draw around the chosen component's
+  mean; lesson 03 draws the joint angles at 0.3 of it (see tools/gmm_rnn_skate.py).
 - ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i, except for the
-  columns in ``absolute_dims``.  Lesson 03 ships every column absolute except the root's floor velocities
-  dx, dz, dyaw.  Measured with tools/gmm_rnn_sweep.py (100 motions of 20 s from one start, b = 2):
-  every mean residual let the root height random-walk (32/100 motions stayed in the data's height range);
-  residual velocities and joint angles kept the height but the legs folded up after ~10 s (2/100 with
-  grounded feet); every mean absolute (the paper) stayed grounded but the 100 motions were nearly the
-  same (APD 0.2 m); absolute except the velocities: 100/100 in range and grounded, APD 7.2 m.
+  columns in ``absolute_dims``.  Lesson 03 ships residual joint angles and dyaw and absolute slip, toe
+  height, pitch and roll on the feet-anchored features (tools/gmm_rnn_skate.py: absolute angles predicted
+  each frame afresh, and their one-step errors made the feet skate).  On the plain state features
+  (tools/gmm_rnn_sweep.py, 100 motions of 20 s from one start, b = 2): every mean residual let the root
+  height random-walk; residual velocities and joint angles kept the height but the legs folded up after
+  ~10 s; every mean absolute (the paper) stayed grounded but the 100 motions were nearly the same.
 """
 
 from __future__ import annotations
@@ -80,6 +91,15 @@ class GmmRnnConfig:
     residual: bool = False  # mu_i = x_t + mu_hat_i instead of mu_hat_i (see "differs"); the paper: False
     self_feed: tuple[int, int] | None = None  # (k, m): k true frames then m own samples as inputs, repeated
     absolute_dims: tuple[int, ...] = ()  # with residual=True: columns whose means stay absolute, mu_i = mu_hat_i
+    features: str = "state_features"  # what x is: "state_features" (eq. 3) or "feet_anchored" (lesson 03's)
+    fixed_dims: tuple[int, ...] = ()  # columns the data never vary: not modelled, copied from x_t (see "differs")
+    bernoulli_contacts: bool = False  # contact bits from a Bernoulli head, not from the Gaussians (see "differs")
+
+    @property
+    def gaussian_dims(self) -> tuple[int, ...]:
+        """The columns the Gaussian mixture models: all but the fixed ones (and the bits with a Bernoulli head)."""
+        skip = set(self.fixed_dims) | (set(self.contact_dims) if self.bernoulli_contacts else set())
+        return tuple(c for c in range(self.dim) if c not in skip)
 
     @classmethod
     def cpu(cls, **overrides) -> GmmRnnConfig:
@@ -103,6 +123,13 @@ class GmmRnnConfig:
             raise ValueError(f"GmmRnnConfig: absolute_dims {self.absolute_dims} outside 0..{self.dim - 1}")
         if any(not 0 <= c < self.dim for c in self.contact_dims):
             raise ValueError(f"GmmRnnConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
+        if self.features not in ("state_features", "feet_anchored"):
+            raise ValueError(f"GmmRnnConfig: features must be 'state_features' or 'feet_anchored', got "
+                             f"{self.features!r}")
+        self.fixed_dims = tuple(int(c) for c in self.fixed_dims)
+        if any(not 0 <= c < self.dim for c in self.fixed_dims) or set(self.fixed_dims) & set(self.contact_dims):
+            raise ValueError(f"GmmRnnConfig: fixed_dims {self.fixed_dims} must lie in 0..{self.dim - 1}, off the "
+                             f"contact bits")
         if self.self_feed is not None:
             self.self_feed = tuple(int(v) for v in self.self_feed)
             if len(self.self_feed) != 2 or min(self.self_feed) < 1:
@@ -126,16 +153,26 @@ def mixture_log_prob(x: torch.Tensor, logits: torch.Tensor, mu: torch.Tensor, lo
 class GmmRnn(nn.Module):
     """Fig. 3: FC1-FC2-LSTM1-LSTM2-FC3 + mixture read-out.  Features are normalised (N, T, dim)."""
 
-    def __init__(self, config: GmmRnnConfig | None = None):
+    def __init__(self, config: GmmRnnConfig | None = None, stats=None):
         super().__init__()
         self.config = c = config or GmmRnnConfig()
         self.fc1, self.fc2 = nn.Linear(c.dim, c.fc_width), nn.Linear(c.fc_width, c.fc_width)
         self.lstm = nn.LSTM(c.fc_width, c.lstm_width, num_layers=2, batch_first=True)  # LSTM1, LSTM2
         self.fc3 = nn.Linear(c.lstm_width, c.out_width)
-        self.out = nn.Linear(c.out_width, c.mixtures * (1 + 2 * c.dim))  # w_hat, mu_hat, sigma_hat
+        n_bits = len(c.contact_dims) if c.bernoulli_contacts else 0
+        self.out = nn.Linear(c.out_width, c.mixtures * (1 + 2 * c.dim) + n_bits)  # w_hat, mu_hat, sigma_hat[, bits]
+        # the normalisation of the features the model reads, (mean (D,), std (D,)); saved with the weights
+        mean, std = (np.zeros(c.dim), np.ones(c.dim)) if stats is None else stats
+        self.register_buffer("feature_mean", torch.as_tensor(np.asarray(mean), dtype=torch.float32).reshape(c.dim))
+        self.register_buffer("feature_std", torch.as_tensor(np.asarray(std), dtype=torch.float32).reshape(c.dim))
         if c.grad_clip_value is not None:
             for p in self.parameters():
                 p.register_hook(_ClampGrad(c.grad_clip_value))
+
+    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):
+        for key in ("feature_mean", "feature_std"):  # checkpoints saved before these buffers: identity
+            state_dict.setdefault(prefix + key, getattr(self, key).clone())
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
 
     def _check(self, x: torch.Tensor, name: str, min_frames: int = 1) -> None:
         D = self.config.dim
@@ -146,7 +183,8 @@ class GmmRnn(nn.Module):
             raise ValueError(f"{name} contains NaN or inf")
 
     def forward(self, x: torch.Tensor, state=None) -> tuple[dict, tuple]:
-        """x: (N, T, D) -> ({"logits": (N, T, M), "mu", "log_sigma": (N, T, M, D)}, LSTM state (h, C)).
+        """x: (N, T, D) -> ({"logits": (N, T, M), "mu", "log_sigma": (N, T, M, D)[, "contact_logits": (N, T, 2)]},
+        LSTM state (h, C)).
 
         Row t parameterises p(x_{t+1} | x_{<=t}); state carries (h_t, C_t) of both LSTMs, eq. (5).
         """
@@ -161,8 +199,28 @@ class GmmRnn(nn.Module):
         if self.config.residual:
             mu = mu + (x * self._residual_mask(x)).unsqueeze(-2)  # mu_i = x_t + mu_hat_i: the change is predicted
         # sigma = exp(sigma_hat), floored at min_std (see "differs")                         -- eq. (7)
-        log_sigma = raw[..., M + M * D:].reshape(N, T, M, D).clamp(min=math.log(self.config.min_std))
-        return {"logits": logits, "mu": mu, "log_sigma": log_sigma}, state
+        log_sigma = raw[..., M + M * D: M + 2 * M * D].reshape(N, T, M, D).clamp(min=math.log(self.config.min_std))
+        params = {"logits": logits, "mu": mu, "log_sigma": log_sigma}
+        if self.config.bernoulli_contacts:
+            params["contact_logits"] = raw[..., M + 2 * M * D:]  # (N, T, 2): log-odds of each foot's contact
+        return params, state
+
+    def log_prob(self, targets: torch.Tensor, params: dict) -> torch.Tensor:
+        """log p(x_{t+1}) (...) of targets (..., D) under one step's params: the mixture of eq. (6) over
+        config.gaussian_dims, plus the Bernoulli log-likelihood of the contact bits (raw > 0.5) with a
+        Bernoulli head.  Fixed columns are not modelled."""
+        cols = list(self.config.gaussian_dims)
+        lp = mixture_log_prob(targets[..., cols], params["logits"], params["mu"][..., cols],
+                              params["log_sigma"][..., cols])
+        if self.config.bernoulli_contacts:
+            bits = self._raw_bits(targets)
+            lp = lp - F.binary_cross_entropy_with_logits(params["contact_logits"], bits, reduction="none").sum(-1)
+        return lp
+
+    def _raw_bits(self, x: torch.Tensor) -> torch.Tensor:
+        """Normalised (..., D) -> the contact bits (..., 2) as 0/1 in raw units."""
+        cols = list(self.config.contact_dims)
+        return ((x[..., cols] * self.feature_std[cols] + self.feature_mean[cols]) > 0.5).to(x.dtype)
 
     def _residual_mask(self, x: torch.Tensor) -> torch.Tensor:
         """(D,) 1 for residual columns, 0 for ``absolute_dims``."""
@@ -187,7 +245,7 @@ class GmmRnn(nn.Module):
             nll = -self._self_fed_log_prob(inputs, targets).mean()
         else:
             params, _ = self(inputs)
-            nll = -mixture_log_prob(targets, **params).mean()  # E = -log p(x_{t+1} | x_t, h_t, C_t)  -- eq. (8)
+            nll = -self.log_prob(targets, params).mean()  # E = -log p(x_{t+1} | x_t, h_t, C_t)  -- eq. (8)
         return {"loss": nll, "nll": nll.detach()}
 
     def _self_fed_log_prob(self, inputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
@@ -201,7 +259,7 @@ class GmmRnn(nn.Module):
             x_t = inputs[:, t] if t % (k + m) < k or own is None else own
             params, state = self(x_t[:, None], state)
             params = {key: v[:, 0] for key, v in params.items()}
-            out.append(mixture_log_prob(targets[:, t], **params))
+            out.append(self.log_prob(targets[:, t], params))
             with torch.no_grad():  # the own prediction: the mean of the most likely component
                 top = params["logits"].argmax(-1)
                 own = params["mu"][torch.arange(len(top), device=top.device), top].detach()
@@ -209,20 +267,30 @@ class GmmRnn(nn.Module):
 
     # --- generation (sec. 4.1.4) ----------------------------------------------------------
 
-    def sample_mixture(self, params: dict, generator: torch.Generator | None = None, bias: float = 0.0) -> torch.Tensor:
+    def sample_mixture(self, params: dict, generator: torch.Generator | None = None, bias: float = 0.0,
+                       noise_scale: torch.Tensor | None = None) -> torch.Tensor:
         """params of one step ("logits" (N, M), "mu"/"log_sigma" (N, M, D)) -> a sample (N, D):
-        a component i ~ Categorical(w), then x ~ N(mu_i, diag(sigma_i^2)).
+        a component i ~ Categorical(w), then x ~ N(mu_i, diag(sigma_i^2)); with a Bernoulli head the contact bits
+        are drawn from sigmoid((1 + b) log-odds) and written in normalised units.
 
         bias b >= 0 (Graves 2013, eq. 61-62; not in Wang et al.): w = softmax((1 + b) w_hat) and
         sigma = exp(sigma_hat - b), so rare broad components are picked less and samples stay closer to
-        the means; b = 0 is the paper's sampling."""
+        the means; b = 0 is the paper's sampling.  noise_scale (D,) (not in the paper) multiplies each column's
+        draw around its mean: 0 takes the component's mean (no per-dimension noise), 1 samples."""
         if bias < 0:
             raise ValueError(f"sampling bias must be >= 0, got {bias}")
         w = torch.softmax((1.0 + bias) * params["logits"], dim=-1)  # eq. (7)
         i = torch.multinomial(w, 1, generator=generator)[:, 0]  # (N,)
         rows = torch.arange(len(i))
         mu, sigma = params["mu"][rows, i], (params["log_sigma"][rows, i] - bias).exp()  # (N, D)
-        return mu + sigma * torch.randn(mu.shape, generator=generator, dtype=mu.dtype)
+        eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype)
+        x = mu + sigma * (eps if noise_scale is None else eps * noise_scale.to(mu.dtype))
+        if self.config.bernoulli_contacts:
+            p = torch.sigmoid((1.0 + bias) * params["contact_logits"])  # (N, 2)
+            bits = (torch.rand(p.shape, generator=generator, dtype=p.dtype) < p).to(x.dtype)
+            cols = list(self.config.contact_dims)
+            x[:, cols] = (bits - self.feature_mean[cols]) / self.feature_std[cols]
+        return x
 
     def fix_contacts(self, x: torch.Tensor, stats=None, mode: str = "threshold") -> torch.Tensor:
         """x: (..., D) normalised sample -> the same with the contact bits made binary ("threshold" at 0.5),
@@ -243,19 +311,25 @@ class GmmRnn(nn.Module):
 
     @torch.no_grad()
     def sample_step(self, x_t: torch.Tensor, state=None, generator: torch.Generator | None = None,
-                    stats=None, contact_mode: str = "threshold", bias: float = 0.0) -> tuple[torch.Tensor, tuple]:
+                    stats=None, contact_mode: str = "threshold", bias: float = 0.0,
+                    noise_scale: torch.Tensor | None = None) -> tuple[torch.Tensor, tuple]:
         """One step of sec. 4.1.4: x_t (N, D), state (h_t, C_t) or None -> x_{t+1} (N, D), new state."""
         params, state = self(x_t[:, None], state)
-        x_next = self.sample_mixture({k: v[:, -1] for k, v in params.items()}, generator, bias)
+        x_next = self.sample_mixture({k: v[:, -1] for k, v in params.items()}, generator, bias, noise_scale)
+        if self.config.fixed_dims:  # not modelled: the data's constants carry over
+            cols = list(self.config.fixed_dims)
+            x_next[:, cols] = x_t[:, cols]
         return self.fix_contacts(x_next, stats, contact_mode), state
 
     @torch.no_grad()
     def generate(self, x0: torch.Tensor, steps: int, generator: torch.Generator | None = None,
-                 stats=None, contact_mode: str = "threshold", bias: float = 0.0) -> torch.Tensor:
+                 stats=None, contact_mode: str = "threshold", bias: float = 0.0,
+                 noise_scale: torch.Tensor | None = None) -> torch.Tensor:
         """x0: (N, 2, D) two initial frames (normalised) -> (N, 2 + steps, D): x0 then ``steps`` sampled frames.
 
         The network reads x_0 and x_1, then each sample x_{t+1} is fed back (sec. 4.1.4).  stats: the
-        dataset's (mean, std), used only to make the contact bits binary in raw units.
+        dataset's (mean, std), used only to make the contact bits binary in raw units; noise_scale: see
+        `sample_mixture`.
         """
         self._check(x0, "x0")
         if x0.shape[1] != 2:
@@ -265,7 +339,7 @@ class GmmRnn(nn.Module):
         _, state = self(x0[:, :1])  # read x_0; x_1 is the first input of the loop
         frames, x_t = [x0[:, 0], x0[:, 1]], x0[:, 1]
         for _ in range(int(steps)):
-            x_t, state = self.sample_step(x_t, state, generator, stats, contact_mode, bias)
+            x_t, state = self.sample_step(x_t, state, generator, stats, contact_mode, bias, noise_scale)
             frames.append(x_t)
         return torch.stack(frames, dim=1)
 

@@ -63,8 +63,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from course_lib.rotations import euler_to_quat, expmap_to_quat
-from course_lib.skeleton import Skeleton, forward_kinematics
+from course_lib.representations import local_positions
+from course_lib.skeleton import Skeleton
 
 __all__ = ["AdversarialSchedule", "Discriminator", "HistoryBuffer", "Refiner", "RefinerConfig",
            "discriminator_loss", "end_effector_features", "local_positions",
@@ -146,22 +146,6 @@ def _rot_y(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
     """Floor-frame (x, z) vectors (..., 2), yaw (...) -> world, R_y(yaw) v (as representations._to_world)."""
     c, s = torch.cos(yaw), torch.sin(yaw)
     return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
-
-
-def local_positions(features: torch.Tensor, skeleton: Skeleton, offsets: torch.Tensor | None = None) -> torch.Tensor:
-    """Raw state features (..., T, D) -> joint positions (..., T, J, 3) in each frame's floor frame
-    (origin under the root, +Z the heading): FK of R_x(pitch) R_z(roll), the expmaps, root height.
-    offsets: rest offsets (J, 3) for every motion, or (..., J, 3) one skeleton per motion (default: skeleton's)."""
-    _check_features(features, skeleton)
-    root_tilt = torch.stack((torch.zeros_like(features[..., 4]), features[..., 4], features[..., 5]), -1)
-    root_q = euler_to_quat(root_tilt, "YXZ")  # (..., T, 4): R_y(0) R_x(pitch) R_z(roll)
-    theta = features[..., 6:-2].unflatten(-1, (skeleton.num_joints - 1, 3))  # (..., T, J-1, 3)
-    q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J, 4)
-    root = torch.stack((torch.zeros_like(features[..., 3]), features[..., 3], torch.zeros_like(features[..., 3])), -1)
-    off = torch.as_tensor(skeleton.offsets, dtype=features.dtype) if offsets is None else offsets.to(features.dtype)
-    if off.dim() == features.dim():  # one skeleton per motion: (..., J, 3) -> (..., 1, J, 3), shared by its frames
-        off = off.unsqueeze(-3)
-    return forward_kinematics(q, root, off, skeleton.parents)[0]
 
 
 def root_trajectory(features: torch.Tensor, init=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
@@ -502,7 +486,8 @@ def _fill_buffer(refiner, draw_rnn, buffer: HistoryBuffer) -> None:
 
 def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_batch, sample_real_batch, *,
                   iterations: int, config: RefinerConfig | None = None, schedule: AdversarialSchedule | None = None,
-                  generator: torch.Generator | None = None, seed: int = 0, progress: bool = True):
+                  generator: torch.Generator | None = None, seed: int = 0, progress: bool = True,
+                  max_refiner_updates: int | None = None):
     """Adversarial training of R and D, sec. 4.2.2 -> a training.History.
 
     sample_rnn_batch() -> (N, T, D) normalised x_RNN, sample_real_batch() -> (N', T, D) normalised
@@ -513,6 +498,8 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
     each of r R updates (eq. 13) and one D update, with r adapted by ``schedule.record(d_loss)``.
     Every D batch is b/2 current refined motions + b/2 from the buffer, then b/2 buffer entries are
     replaced.  RMSProp, lr ``config.lr_refiner`` / ``config.lr_discriminator``, alpha ``config.rmsprop_decay``.
+    max_refiner_updates: stop after the round in which R's adversarial updates reach this many (a CPU budget;
+    the rounds then number fewer than ``iterations`` when r grows).
 
     History.step, one value per round: "loss" (R's eq. 13 loss, mean over the round's R updates),
     "adversarial", "root", "d_loss", "d_acc_real", "d_acc_fake" (D's loss and accuracies on the batch of
@@ -551,13 +538,17 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
     for _ in range(n_d):  # warm-up of D: real vs refined
         warm.log_step(_discriminator_step(refiner, discriminator, opt_d, buffer, rnn(), real(), half))
     bar = dict(desc="refiner GAN") if progress else dict(disable=True)  # TQDM_DISABLE=1 is honoured
+    done = 0
     for _ in tqdm(range(iterations), **bar):
+        if max_refiner_updates is not None and done >= max_refiner_updates:
+            break
         n_r, n_d = schedule.next_round()
         steps = [_refiner_step(refiner, discriminator, opt_r, rnn(), c.lam, adversarial=True) for _ in range(n_r)]
         logs = {k: float(np.mean([s[k] for s in steps])) for k in ("loss", "adversarial", "root")}
         for _ in range(n_d):
             logs.update(_discriminator_step(refiner, discriminator, opt_d, buffer, rnn(), real(), half))
         logs["r_updates"] = n_r
+        done += n_r
         schedule.record(logs["d_loss"])
         history.log_step(logs)
     history.end_epoch()
