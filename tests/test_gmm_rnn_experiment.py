@@ -80,15 +80,20 @@ def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
     assert all(np.isfinite(hist.step["loss"] + ft.step["loss"]))
 
 
-def test_recipe_sweep_runs_one_variant_end_to_end(setup):
-    """tools/gmm_rnn_sweep.py (the search behind the shipped recipe): one variant, a few steps, every number."""
+def load_tool(name: str):
+    """tools/<name>.py as a module (the tools folder is not a package)."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "tools" / "gmm_rnn_sweep.py"
-    spec = importlib.util.spec_from_file_location("gmm_rnn_sweep", path)
-    sweep = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(sweep)
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).resolve().parents[1] / "tools" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_recipe_sweep_runs_one_variant_end_to_end(setup):
+    """tools/gmm_rnn_sweep.py (the search behind the shipped recipe): one variant, a few steps, every number."""
+    sweep = load_tool("gmm_rnn_sweep")
     clips, ds, *_ = setup
     threads = torch.get_num_threads()
     try:
@@ -144,13 +149,7 @@ def test_feet_anchored_rnn_round_trip_and_one_step(setup):
 
 def test_skate_study_measures_one_model(setup):
     """tools/gmm_rnn_skate.py (the RNN foot-skate study behind the shipped recipe): every number of one model."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "tools" / "gmm_rnn_skate.py"
-    spec_ = importlib.util.spec_from_file_location("gmm_rnn_skate", path)
-    study = importlib.util.module_from_spec(spec_)
-    spec_.loader.exec_module(study)
+    study = load_tool("gmm_rnn_skate")
     clips, ds, *_ = setup
     spec = X.Lesson03Spec(eval_seconds=2.0, n_random=4, random_seconds=3.0, rnn_steps=3, sample_angle_noise=0.3)
     model, _, _ = X.train_rnn(ds, spec, seed=0, progress=False)

@@ -32,7 +32,7 @@ from course_lib.evaluation.metrics import (
     root_relative,
     speed_error,
 )
-from course_lib.evaluation.tables import ResultsTable, mean_sd, table
+from course_lib.evaluation.tables import ResultsTable, mean_sd, over_seeds, table
 
 _LAZY = {
     "classifiers": ("ClassifierConfig", "MotionClassifier", "accuracy", "load_classifier", "motions_to_batch"),
@@ -55,6 +55,6 @@ __all__ = [
     "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation", "c2st",
     "classifier_features", "contact_agreement", "facing_yaw", "fid", "foot_skate", "frechet_distance",
     "freeze_floor", "ground_penetration", "heading_error", "inception_score", "jitter", "joint_speed",
-    "load_classifier", "lower_toe", "mean_sd", "motions_to_batch", "npss", "path_distance", "pose_error",
+    "load_classifier", "lower_toe", "mean_sd", "motions_to_batch", "npss", "over_seeds", "path_distance", "pose_error",
     "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
 ]

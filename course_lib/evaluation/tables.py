@@ -18,7 +18,7 @@ import html
 import math
 from collections.abc import Mapping, Sequence
 
-__all__ = ["ResultsTable", "mean_sd", "table"]
+__all__ = ["ResultsTable", "mean_sd", "over_seeds", "table"]
 
 _MISSING = "\u2014"
 
@@ -40,6 +40,21 @@ def mean_sd(mean: float, sd: float, digits: int = 3) -> str:
     decimals = max(0, digits - 1 - int(math.floor(math.log10(abs(mean)))) if mean else digits - 1)
     return f"{mean:.{decimals}f} ± {sd:.{decimals}f}"
 
+
+
+def over_seeds(per_seed: list):
+    """Nested dicts of numbers, one per (generation) seed -> (mean, sd) of the same shape: the sd with ddof 1,
+    0 for a single seed; bools and ints are averaged too.
+    over_seeds([{"a": 1}, {"a": 3}]) -> ({"a": 2.0}, {"a": 1.414...})."""
+    first = per_seed[0]
+    if isinstance(first, Mapping):
+        pairs = {k: over_seeds([r[k] for r in per_seed]) for k in first}
+        return {k: m for k, (m, _) in pairs.items()}, {k: sd for k, (_, sd) in pairs.items()}
+    values = [float(v) for v in per_seed]
+    mean = math.fsum(values) / len(values)
+    if len(values) < 2:
+        return mean, 0.0
+    return mean, math.sqrt(math.fsum((v - mean) ** 2 for v in values) / (len(values) - 1))
 
 class ResultsTable:
     """Rows of (model, source, {column: value}); render with .markdown(), .html(), .to_dict()."""

@@ -450,21 +450,13 @@ def evaluate(generated: dict[str, list[Motion]], real_test: list[Motion], real_t
                        "real_train_unseen_by_classifiers": len(real_other)}}
 
 
-def over_seeds(per_seed: list[dict]) -> tuple[dict, dict]:
-    """Nested dicts of numbers, one per generation seed -> (mean, sd) dicts of the same shape."""
-    first = per_seed[0]
-    if isinstance(first, dict):
-        pairs = {k: over_seeds([r[k] for r in per_seed]) for k in first}
-        return {k: m for k, (m, _) in pairs.items()}, {k: sd for k, (_, sd) in pairs.items()}
-    values = np.array(per_seed, dtype=float)
-    return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
-
-
 def eval_hvrnn(seed: int = 0, progress: bool = True, checkpoints: Path = CHECKPOINTS, n_per: int = 100,
                mode: str | None = "full", models: dict | None = None, seeds: int = EVAL_SEEDS) -> dict:
     """Generate n_per samples per action x style with every shipped model, `seeds` times (generation seeds
     seed, seed + 1, ...), and score them -> JSON-able dict: "table2", "collapse", "apd" are means over the
     seeds, "table2_sd", "collapse_sd", "apd_sd" their standard deviations, "per_seed" each run."""
+    from course_lib.evaluation import over_seeds
+
     t0 = time.perf_counter()
     data = load_data(mode)
     models = models or {name: load_model(name, checkpoints) for name in model_specs()}

@@ -404,18 +404,10 @@ def quality(models: dict, data: MoGlowData, seed: int) -> dict:
     return rows
 
 
-def over_seeds(per_seed: list[dict]):
-    """Nested dicts of numbers, one per seed -> (mean, sd) of the same shape (bools/ints averaged too)."""
-    first = per_seed[0]
-    if isinstance(first, dict):
-        pairs = {k: over_seeds([r[k] for r in per_seed]) for k in first}
-        return {k: m for k, (m, _) in pairs.items()}, {k: s for k, (_, s) in pairs.items()}
-    v = np.array(per_seed, dtype=float)
-    return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0
-
-
 def evaluate(models: dict, data: MoGlowData, seed: int = 0, seeds: int = EVAL_SEEDS) -> dict:
     """Every must-show measure of lesson 06 -> JSON-able dict."""
+    from course_lib.evaluation import over_seeds
+
     out = {"nll_per_frame": {name: nll_per_frame(m, data.test) for name, m in models.items()},
            "val_nll_per_frame": {name: nll_per_frame(m, data.val) for name, m in models.items()},
            "round_trip_max_error": {name: round_trip_error(m, data.test) for name, m in models.items()},
