@@ -228,6 +228,25 @@ def test_design_motion_follows_a_line(prior, walk):
     assert float(dist.mean()) < 0.15
     travelled = np.linalg.norm(m.root_positions[-1, [0, 2]] - curve[0])
     assert travelled > 1.0  # it walks along the line, not on the spot
+    # the progress term is paced on the arc length left: the last frame is near the end asked (2 s at 1.2 m/s)
+    want = curve[0] + (curve[1] - curve[0]) * 2.4 / 4.0
+    short = make_line_design(prior, walk, want)
+    assert np.linalg.norm(short.root_positions[-1, [0, 2]] - want) < 0.5
+
+
+def make_line_design(prior, walk, end):
+    from course_lib.control import DesignConfig, design_motion
+
+    return design_motion(np.array([[1.0, 0.0], end]), 2.0, start=walk, seed=0, prior=prior,
+                         config=DesignConfig.tiny())
+
+
+def test_progress_rules_are_checked():
+    from course_lib.control import DesignConfig
+
+    assert DesignConfig().progress == "arc"
+    with pytest.raises(ValueError, match="progress"):
+        DesignConfig(progress="speed")
 
 
 def test_design_motion_errors(prior, walk):
@@ -294,3 +313,72 @@ def test_arc_position_and_polyline_between_known_answers():
     closed = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]])  # a closed square
     assert E.arc_position(closed, [0.0, 0.1]) == pytest.approx(3.9)  # nearest: the last side
     assert E.arc_position(closed, [0.0, 0.1], 0.0, 1.0) == pytest.approx(0.0)  # ahead of the start only
+
+
+def test_arc_length_at_known_answers_and_gradient():
+    curve = torch.tensor([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]], dtype=torch.float64)
+    pts = torch.tensor([[1.0, 0.5], [3.0, 1.0], [-1.0, -1.0], [2.5, 5.0]], dtype=torch.float64, requires_grad=True)
+    s = E.arc_length_at(pts, curve)
+    assert torch.allclose(s, torch.tensor([1.0, 3.0, 0.0, 4.0], dtype=torch.float64))
+    s.sum().backward()
+    # moving a point along its nearest segment moves its arc length one for one; off the ends, not at all
+    assert torch.allclose(pts.grad, torch.tensor([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0], [0.0, 0.0]], dtype=torch.float64))
+
+
+def test_pso_step_known_answer_and_pso_uses_it():
+    from course_lib.control.pso import pso_step
+
+    cfg = PsoConfig(inertia=0.5, c1=1.0, c2=2.0)
+    x, v = torch.tensor([[0.0, 1.0]]), torch.tensor([[1.0, -1.0]])
+    p, g, r = torch.tensor([[1.0, 1.0]]), torch.tensor([2.0, 3.0]), torch.full((1, 2), 0.5)
+    nx, nv = pso_step(x, v, p, g, r, r, cfg)
+    # v = 0.5 v + 1 * 0.5 (p - x) + 2 * 0.5 (g - x) = (0.5 + 0.5 + 2, -0.5 + 0 + 2)
+    assert torch.allclose(nv, torch.tensor([[3.0, 1.5]])) and torch.allclose(nx, torch.tensor([[3.0, 2.5]]))
+    # pso's first iteration from zero velocity is this step with its generator's draws
+    x0 = torch.tensor([[0.0, 0.0], [1.0, 1.0], [2.0, 0.5]], dtype=torch.float64)
+
+    def loss(z):
+        return -z.sum(-1)  # every move towards the best (2, 0.5) improves: the best is the new best position
+    res = pso(loss, x0, PsoConfig(iterations=1), torch.Generator().manual_seed(5))
+    gen = torch.Generator().manual_seed(5)
+    r1, r2 = (torch.rand(x0.shape, generator=gen, dtype=x0.dtype) for _ in range(2))
+    new, _ = pso_step(x0, torch.zeros_like(x0), x0, x0[2], r1, r2, PsoConfig())
+    best = new[int(loss(new).argmin())] if float(loss(new).min()) < float(loss(x0).min()) else x0[2]
+    assert torch.allclose(res.best, best)
+
+
+def test_zero_phase_filters_keep_a_clean_walk_and_lower_the_error_of_a_noisy_one(walk):
+    from course_lib.experiments.control import filter_motion
+    from course_lib.representations import encode_state_features
+    from course_lib.synthetic import add_noise
+
+    noisy = add_noise(walk, seed=0, jitter_sd=0.05, spike_rate=0.0, drop_rate=0.0)  # white jitter only
+
+    def err(m):  # the joint angles' error (the world path also carries frame 0's noisy heading, kept as given)
+        return float(np.abs(encode_state_features(m)[:, 6:-2] - encode_state_features(walk)[:, 6:-2]).mean())
+    assert err(walk) == 0.0
+    for kind, param in (("butter", 6.0), ("savgol", 9)):
+        assert err(filter_motion(walk, kind, param)) < 0.01  # a smooth walk passes (under 0.01 rad)
+        assert err(filter_motion(noisy, kind, param)) < 0.8 * err(noisy)
+    with pytest.raises(ValueError, match="kind"):
+        filter_motion(walk, "median", 3)
+
+
+def test_settling_times_known_answer():
+    from course_lib.experiments.control import _settle
+
+    log = [{"t": 0.5 * (i + 1), "cmd": c, "ok": ok} for i, (c, ok) in
+           enumerate([(1, True), (1, True), (2, False), (2, False), (2, True), (3, False)])]
+    out = _settle(log, "cmd", lambda r: r["ok"])
+    assert out == [{"at_s": 1.0, "to": 2, "seconds": 1.5}, {"at_s": 2.5, "to": 3, "seconds": None}]
+
+
+def test_window_energy_for_motion_scores_mocap_below_jittered_frames(prior, walk):
+    from course_lib.control.window import WindowEnergy
+
+    energy, frames = WindowEnergy.for_motion(prior, walk)
+    assert frames.shape == (1, len(walk) - 2, prior.dim)
+    jitter = frames.clone()
+    jitter[..., 6:-2] += 0.05 * torch.randn(jitter[..., 6:-2].shape, generator=torch.Generator().manual_seed(0),
+                                            dtype=torch.float64)
+    assert float(energy.terms(frames)["prior"]) < float(energy.terms(prior.clean(jitter))["prior"]) - 100

@@ -19,31 +19,11 @@ import numpy as np
 import torch
 
 from course_lib.control.design import default_prior
-from course_lib.control.initial_state import estimate_initial_state
-from course_lib.control.kinematics import world_positions
+from course_lib.control.initial_state import estimate_initial_state, first_frame_speed, predicted_second
 from course_lib.control.starts import held_out_clips
 from course_lib.representations import encode_state_features
 
 OUT = Path(__file__).with_name("control_results.json")
-
-
-def predicted_second(prior, raw, state, skel):
-    """raw (1, 2, D) -> the most likely component's mean for s_2 given s_1 and state, raw (1, 1, D)."""
-    with torch.no_grad():
-        y = prior.to_model(raw, skel)
-        params, _ = prior.model(y[:, :1], state)
-        k = params["logits"][0, 0].argmax()
-        pred = y.clone()
-        pred[0, 1] = params["mu"][0, 0, k]
-        return prior.from_model(pred, skel)[:, 1:]
-
-
-def joint_speed(raw_pair, skel) -> float:
-    """(1, 2, D) raw frames -> mean joint speed from frame 0 to frame 1, m/s at 30 fps."""
-    r = raw_pair.clone()
-    r[:, 0, :3] = 0.0
-    p = world_positions(r, skel, torch.zeros(3, dtype=torch.float64))  # frame 0 at the origin, frame 1 one step on
-    return float((p[0, 1] - p[0, 0]).norm(dim=-1).mean()) * 30
 
 
 def main():
@@ -57,8 +37,8 @@ def main():
             state, _ = estimate_initial_state(prior, raw, skel, steps=100)
             for name, h1 in (("zero_state", None), ("estimated_state", state)):
                 pair = torch.cat((raw[:, :1], predicted_second(prior, raw, h1, skel)), 1)
-                rows[name].append(joint_speed(pair, skel))
-            rows["mocap"].append(joint_speed(raw, skel))
+                rows[name].append(first_frame_speed(pair, skel))
+            rows["mocap"].append(first_frame_speed(raw, skel))
     out = {k: {"mean_joint_speed_m_s": float(np.mean(v)), "max": float(np.max(v))} for k, v in rows.items()}
     out["clips"] = len(rows["mocap"])
     out["command"] = "OMP_NUM_THREADS=1 TQDM_DISABLE=1 python tools/control_initial_state.py"

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from course_lib.control.energy import arc_position, check_curve, curve_energy, polyline_between
+from course_lib.control.energy import arc_length_at, arc_position, check_curve, curve_energy, polyline_between
 from course_lib.control.kinematics import heading_yaw, integrate_root
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
 from course_lib.control.pso import PsoConfig, pso
@@ -57,12 +57,15 @@ class DesignConfig:
     lbfgs: LbfgsConfig = field(default_factory=lambda: LbfgsConfig(iterations=40))
     sigma_speed: float | None = 0.1  # m/s, the progress term (not in the paper); None: eq. (17) alone
     speed: float | None = None  # m/s the progress term asks for; None: the curve's length / seconds
+    progress: str = "arc"  # "arc": arc length gained along the curve, paced to end on time; "net": net speed
     use_pso: bool = True  # False: L-BFGS from the best candidate alone (a baseline)
     use_lbfgs: bool = True  # False: PSO (or the best candidate) alone (a baseline)
 
     def __post_init__(self):
         if not 0 < self.hop <= self.window:
             raise ValueError(f"DesignConfig: need 0 < hop <= window, got hop={self.hop}, window={self.window}")
+        if self.progress not in ("arc", "net"):
+            raise ValueError(f"DesignConfig: progress must be 'arc' or 'net', got {self.progress!r}")
         if self.candidates < 1:
             raise ValueError(f"DesignConfig: candidates must be >= 1, got {self.candidates}")
 
@@ -131,19 +134,30 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
     raw0, init0, start_m = prepare_start(start, gait, seed, init0, prior, fps)
     speed = float(np.linalg.norm(seg, axis=1).sum() / seconds) if config.speed is None else config.speed
 
-    reach = 2.0 * config.window * speed / fps + 0.5  # m of curve a window can cover, with room to spare
+    length = float(np.linalg.norm(seg, axis=1).sum())
     progress = [0.0]  # arc length reached so far: it only grows
 
-    def control(init):  # eq. (17) on the curve just ahead of the window's start (see "differs"), + progress
+    def control(init, left):  # eq. (17) on the curve just ahead of the window's start (see "differs"), + progress
+        reach = 2.0 * config.window * speed / fps + 0.5  # m of curve a window can cover, with room to spare
         progress[0] = arc_position(c, init[:2].numpy(), progress[0], progress[0] + reach)
+        if config.progress == "arc":  # behind (ahead of) schedule: the pace due is faster (slower)
+            reach = max(reach, 2.0 * config.window * (length - progress[0]) / max(left, 1) + 0.5)
         curve_t = torch.from_numpy(polyline_between(c, progress[0], progress[0] + reach))
+        remaining = length - progress[0]
 
         def energy(xz, yaw, raw):
             e = curve_energy(xz, curve_t, config.sigma_fit2)
-            if config.sigma_speed is not None:  # the progress term (not in the paper, see "differs")
-                net = (xz[:, -1] - xz[:, 0]).norm(dim=-1) * fps / (xz.shape[1] - 1)  # (N,) m/s, net displacement
-                e = e + (net - speed) ** 2 / config.sigma_speed ** 2 * (xz.shape[1] - 1)
-            return e
+            if config.sigma_speed is None:
+                return e
+            if config.progress == "net":  # the net displacement's speed, in any direction (the previous rule)
+                net = (xz[:, -1] - xz[:, 0]).norm(dim=-1) * fps / (xz.shape[1] - 1)  # (N,) m/s
+                return e + (net - speed) ** 2 / config.sigma_speed ** 2 * (xz.shape[1] - 1)
+            # arc length gained along the curve by the window's last frame that will be kept at the end
+            # (the motion's last frame in the last window), against the pace that reaches the end on time
+            n = min(xz.shape[1], left)
+            gained = arc_length_at(xz[:, n - 1], curve_t)  # (N,) m, from the window's start
+            due = remaining * n / left
+            return e + ((gained - due) * fps / n) ** 2 / config.sigma_speed ** 2 * n
         return energy
 
     frames, info = solve_windows(prior, start_m, raw0, _second_pose(raw0, init0), control,
@@ -159,7 +173,8 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
 def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: torch.Tensor, control, total: int,
                   config: DesignConfig, seed: int) -> tuple[torch.Tensor, dict]:
     """The sliding-window MAP of sec. 5.2 for ``total`` frames after the two start frames raw0 (1, 2, D), frame 1
-    at init1; control(init) -> the control energy of a window whose previous frame is at init = (x, z, yaw)
+    at init1; control(init, left) -> the control energy of a window whose previous frame is at init = (x, z, yaw),
+    with ``left`` frames still to make
     -> (raw frames (total, D), info)."""
     t0 = time.perf_counter()
     g = torch.Generator().manual_seed(seed)
@@ -168,7 +183,7 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
     state = prior.start_state(raw0, skel)
     out, carry, windows, done = [], None, [], 0
     while done < total:
-        energy = WindowEnergy(prior, skel, prev, state, init, control(init), plane)
+        energy = WindowEnergy(prior, skel, prev, state, init, control(init, total - done), plane)
         raw, u, hist = _solve_window(energy, carry, config, g)
         left = total - done
         k = config.hop if left > config.window else min(left, config.window)

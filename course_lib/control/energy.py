@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 __all__ = ["SIGMA_FIT2", "SIGMA_CON", "SIGMA_CON_Y", "check_curve", "nearest_on_polyline", "arc_lengths",
-           "polyline_between", "arc_position", "curve_energy",
+           "polyline_between", "arc_position", "arc_length_at", "curve_energy",
            "contact_energy"]
 
 SIGMA_FIT2 = 0.5  # sigma_fit^2 of eq. (17), m^2: the paper's setting
@@ -88,6 +88,20 @@ def arc_position(curve: np.ndarray, point, s0: float = 0.0, s1: float = np.inf) 
     t = np.clip(((near - a) * (b - a)).sum(-1) / np.maximum(((b - a) ** 2).sum(-1), 1e-12), 0, 1)
     k = int(np.argmin(np.linalg.norm(a + t[:, None] * (b - a) - near, axis=1)))
     return float(max(s0, 0.0) + seg_start[k] + t[k] * np.linalg.norm(b[k] - a[k]))
+
+
+def arc_length_at(points: torch.Tensor, curve: torch.Tensor) -> torch.Tensor:
+    """points (..., 2), curve (K, 2) -> (...) the arc length (from the curve's first point) of each point's nearest
+    point on the polyline.  Differentiable in points along the nearest segment (s = s_k + t |b - a|)."""
+    curve = curve.to(points.dtype)
+    a, b = curve[:-1], curve[1:]  # (K-1, 2)
+    ab = b - a
+    lens = (ab ** 2).sum(-1).clamp(min=1e-12).sqrt()  # (K-1,)
+    start = torch.cat((lens.new_zeros(1), torch.cumsum(lens, 0)[:-1]))  # (K-1,) arc length at each a
+    t = (((points[..., None, :] - a) * ab).sum(-1) / lens ** 2).clamp(0.0, 1.0)  # (..., K-1)
+    dist2 = ((points[..., None, :] - (a + t[..., None] * ab)) ** 2).sum(-1)
+    k = dist2.argmin(-1, keepdim=True)
+    return (start + t * lens).gather(-1, k)[..., 0]
 
 
 def curve_energy(root_xz: torch.Tensor, curve: torch.Tensor, sigma_fit2: float = SIGMA_FIT2) -> torch.Tensor:

@@ -16,7 +16,7 @@ import torch
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.skeleton import Skeleton
 
-__all__ = ["estimate_initial_state", "initial_state_nll"]
+__all__ = ["estimate_initial_state", "initial_state_nll", "predicted_second", "first_frame_speed"]
 
 
 def initial_state_nll(prior: RnnPrior, first: torch.Tensor, state, skeleton: Skeleton) -> torch.Tensor:
@@ -42,3 +42,25 @@ def estimate_initial_state(prior: RnnPrior, first: torch.Tensor, skeleton: Skele
         opt.step()
         history.append(float(e.detach()))
     return (h.detach(), c.detach()), history
+
+
+@torch.no_grad()
+def predicted_second(prior: RnnPrior, raw: torch.Tensor, state, skeleton: Skeleton) -> torch.Tensor:
+    """raw (1, 2, D) frames s_1, s_2; state before s_1 (None: zero) -> the RNN's s_2 given s_1: the most likely
+    component's mean, raw (1, 1, D)."""
+    y = prior.to_model(raw, skeleton)
+    params, _ = prior.model(y[:, :1], state)
+    k = params["logits"][0, 0].argmax()
+    pred = y.clone()
+    pred[0, 1] = params["mu"][0, 0, k]
+    return prior.from_model(pred, skeleton)[:, 1:]
+
+
+def first_frame_speed(raw_pair: torch.Tensor, skeleton: Skeleton, fps: float = 30.0) -> float:
+    """(1, 2, D) raw frames -> the mean joint speed (m/s) from frame 0 to frame 1: the "hop" of eq. (26)."""
+    from course_lib.control.kinematics import world_positions
+
+    r = raw_pair.double().clone()
+    r[:, 0, :3] = 0.0
+    p = world_positions(r, skeleton, torch.zeros(3, dtype=torch.float64))  # frame 0 at the origin, frame 1 a step on
+    return float((p[0, 1] - p[0, 0]).norm(dim=-1).mean()) * fps

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-__all__ = ["PsoConfig", "PsoResult", "pso"]
+__all__ = ["PsoConfig", "PsoResult", "pso", "pso_step"]
 
 
 @dataclass
@@ -76,11 +76,7 @@ def pso(loss: Callable[[torch.Tensor], torch.Tensor], x0: torch.Tensor, config: 
             break
         r1 = torch.rand(x.shape, generator=generator, dtype=x.dtype)
         r2 = torch.rand(x.shape, generator=generator, dtype=x.dtype)
-        # v <- w v + c1 r1 (p - x) + c2 r2 (g - x)
-        v = config.inertia * v + config.c1 * r1 * (p - x) + config.c2 * r2 * (g - x)
-        if config.v_max is not None:
-            v = v.clamp(-config.v_max, config.v_max)
-        x = x + v
+        x, v = pso_step(x, v, p, g, r1, r2, config)
         f = _evaluate(loss, x)
         better = f < fp
         p[better], fp[better] = x[better], f[better]
@@ -89,6 +85,17 @@ def pso(loss: Callable[[torch.Tensor], torch.Tensor], x0: torch.Tensor, config: 
             g, fg = p[k].clone(), float(fp[k])
         history.append(fg)
     return PsoResult(g, fg, history)
+
+
+def pso_step(x: torch.Tensor, v: torch.Tensor, p: torch.Tensor, g: torch.Tensor, r1: torch.Tensor,
+             r2: torch.Tensor, config: PsoConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    """One swarm update: positions x, velocities v, personal bests p (P, n), swarm best g (n,), uniform draws
+    r1, r2 (P, n) -> (new x, new v)."""
+    # v <- w v + c1 r1 (p - x) + c2 r2 (g - x)
+    v = config.inertia * v + config.c1 * r1 * (p - x) + config.c2 * r2 * (g - x)
+    if config.v_max is not None:
+        v = v.clamp(-config.v_max, config.v_max)
+    return x + v, v
 
 
 def _converged(history: list, config: PsoConfig) -> bool:

@@ -13,7 +13,7 @@ import numpy as np
 
 from course_lib.motion import Motion
 
-__all__ = ["held_out_clips", "held_out_start", "gaits"]
+__all__ = ["held_out_clips", "held_out_start", "gaits", "training_clips"]
 
 FPS = 30.0  # the GMM-RNN's frame rate (sec. 4.1.3)
 
@@ -24,6 +24,19 @@ def _clips(fps: float) -> tuple[Motion, ...]:
 
     spec = DataSpec()
     return tuple(m.resample(fps) for m in load_clips(spec, progress=False) if m.subject in spec.test_subjects)
+
+
+@functools.lru_cache(maxsize=1)
+def _training(fps: float) -> tuple[Motion, ...]:
+    from course_lib.experiments.vae_lstm import DataSpec, load_clips
+
+    spec = DataSpec()
+    return tuple(m.resample(fps) for m in load_clips(spec, progress=False) if m.subject not in spec.test_subjects)
+
+
+def training_clips(gait: str | None = None, fps: float = FPS) -> list[Motion]:
+    """The clips of the other subjects (the RNN's training data), all or those of ``gait``."""
+    return [m for m in _training(float(fps)) if gait is None or m.action == gait]
 
 
 def held_out_clips(gait: str | None = None, fps: float = FPS) -> list[Motion]:

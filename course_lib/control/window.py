@@ -56,6 +56,19 @@ class WindowEnergy:
         self.std = torch.from_numpy(self.prior.std)
         self.free = torch.from_numpy(self.prior.free)
 
+    @classmethod
+    def for_motion(cls, prior: RnnPrior, motion, control: Control | None = None, **kw):
+        """Eq. (19) on a motion's own frames (at the RNN's fps): its first two frames known (sec. 4.1.4's start,
+        zero state), the rest scored -> (energy, the rest as raw frames (1, T - 2, D))."""
+        from course_lib.control.design import _second_pose, stance_plane
+        from course_lib.representations import encode_state_features, root_start
+
+        raw = prior.clean(torch.from_numpy(encode_state_features(motion)))[None]  # (1, T, D)
+        state = prior.start_state(raw[:, :2], motion.skeleton)
+        init = _second_pose(raw[:, :2], torch.tensor(root_start(motion), dtype=torch.float64))
+        kw.setdefault("plane", stance_plane(motion))
+        return cls(prior, motion.skeleton, raw[:, :2], state, init, control, **kw), raw[:, 2:]
+
     # --- variables <-> frames ------------------------------------------------------------------------------
 
     def to_z(self, raw: torch.Tensor) -> torch.Tensor:
