@@ -7,7 +7,8 @@ character faces +Z at rest, so its left (+X) appears on the image's right when
 seen from the front.  Image sizes are always `size=(H, W)` in pixels; every
 function returns `(H, W, 3)` uint8 arrays (GIFs are returned as bytes).
 
-3-D (pyvista, needs OpenGL): `render_frame`, `render_still`, `render_side_by_side`, and animations:
+3-D (pyvista, needs OpenGL): `render_frame`, `render_still`, `render_side_by_side`, `render_keyframes`
+(poses in place, floor lines), and animations:
 `render_mp4` (H.264, shown with `video_html`: a player with play and scrub controls), `render_gif`
 (only where no player can be used).  Bones are tubes, joints spheres, on a checkered floor
 with 0.5 m tiles; optional root trajectory and discs under feet in contact.
@@ -31,7 +32,7 @@ from __future__ import annotations
 import contextlib
 import io
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -313,7 +314,7 @@ class _Scene:
     """A reusable off-screen Plotter holding characters, floor, trajectories and contact discs."""
 
     def __init__(self, tracks: list[_Track], frames, size, view, *, trajectory, contacts, floor,
-                 bone_radius, joint_radius, follow=False, margin=1.08):
+                 bone_radius, joint_radius, follow=False, margin=1.08, lines=()):
         import pyvista as pv
 
         self.tracks, self.size = tracks, tuple(size)
@@ -352,6 +353,10 @@ class _Scene:
                 if len(root) > 1:
                     self.p.add_mesh(pv.lines_from_points(root), color=tuple(t.color * 0.7), line_width=3,
                                     lighting=False)
+        for pts, color in lines:  # floor polylines (a user's curve, a path): (N, 2) (x, z) or (N, 3)
+            pts = np.asarray(pts, float)
+            pts = np.stack((pts[:, 0], np.zeros(len(pts)), pts[:, -1]), -1) + [0, 0.006, 0]
+            self.p.add_mesh(pv.lines_from_points(pts), color=tuple(_rgb(color)), line_width=4, lighting=False)
         self.discs = self._add_discs(pv) if contacts else []
         self.p.camera.position, self.p.camera.focal_point, self.p.camera.up = pos, focal, (0.0, 1.0, 0.0)
         self.cam0 = (pos, focal)
@@ -478,6 +483,30 @@ def render_side_by_side(items, labels=None, colors=None, parents=None, frame: in
     scene = _Scene(tracks, [fs[0]], size, view, **{**_STYLE, **style})
     try:
         img = scene.draw(fs[0])
+    finally:
+        scene.close()
+    if path is not None:
+        import imageio.v3 as iio
+        iio.imwrite(path, img)
+    return img
+
+
+def render_keyframes(x, frames, parents=None, *, lines=(), path=None, size=(360, 720), view="three_quarter",
+                     color=GT_COLOR, trajectory: bool = True, **style) -> np.ndarray:
+    """Several poses of one Motion / positions (T, J, 3), each where it is in the world (Fig. 8 of Wang, Chai et
+    al.), the root trajectory on the floor, and ``lines``: floor polylines as ((N, 2) (x, z) or (N, 3), colour)
+    pairs -> (H, W, 3) uint8; writes a PNG when path is given."""
+    clip = as_clip(x, parents)
+    fs = [_frame_index(clip, f) for f in frames]
+    if not fs:
+        raise ValueError("render_keyframes: pass at least one frame")
+    tracks = [_Track(replace(clip, positions=clip.positions[f:f + 1],
+                             contacts=None if clip.contacts is None else clip.contacts[f:f + 1]),
+                     clip.positions[f:f + 1], _rgb(color)) for f in fs]
+    lines = list(lines) + ([(clip.positions[:, 0], _rgb(color) * 0.7)] if trajectory else [])
+    scene = _Scene(tracks, [0], size, view, **{**_STYLE, **style, "trajectory": False}, lines=lines)
+    try:
+        img = scene.draw(0)
     finally:
         scene.close()
     if path is not None:

@@ -4,6 +4,7 @@
     python -m course_lib.reproduce gmm_rnn [--eval-only]   # lesson 03, course_lib/experiments/gmm_rnn.py
     python -m course_lib.reproduce hvrnn [--eval-only]     # lesson 05, course_lib/experiments/hvrnn.py
     python -m course_lib.reproduce moglow [--eval-only]    # lesson 06, course_lib/experiments/moglow.py
+    python -m course_lib.reproduce control [--eval-only]   # lesson 04, course_lib/experiments/control.py (no training)
 
 Without --eval-only: data, train every model of the lesson (or those named in --only), save the
 checkpoints and record the results in checkpoints/MANIFEST.json; with it: the results from the
@@ -48,7 +49,7 @@ def _lazy(module: str, name: str):
 
 
 EXPERIMENTS = {name: (_lazy(f"experiments.{name}", f"train_{name}"), _lazy(f"experiments.{name}", f"eval_{name}"))
-               for name in ("vae_lstm", "gmm_rnn", "hvrnn", "moglow")}
+               for name in ("vae_lstm", "gmm_rnn", "hvrnn", "moglow", "control")}
 
 # Lesson 02's experiment used to live here; these names still resolve (lesson 03's data builds on it).
 _MOVED_TO_VAE_LSTM = ("DataSpec", "generate_clips", "load_clips", "datasets", "DATA_FILE", "FRAMES")

@@ -382,3 +382,51 @@ def test_window_energy_for_motion_scores_mocap_below_jittered_frames(prior, walk
     jitter[..., 6:-2] += 0.05 * torch.randn(jitter[..., 6:-2].shape, generator=torch.Generator().manual_seed(0),
                                             dtype=torch.float64)
     assert float(energy.terms(frames)["prior"]) < float(energy.terms(prior.clean(jitter))["prior"]) - 100
+
+
+def test_render_keyframes_draws_every_pose_in_place_and_the_floor_curve(walk):
+    from course_lib import render
+
+    red = (1.0, 0.0, 0.0)
+    curve = walk.root_positions[:, [0, 2]] + [0.3, 0.0]  # a line beside the path
+
+    def reddish(img):
+        return int(((img[..., 0] > 200) & (img[..., 1] < 60) & (img[..., 2] < 60)).sum())
+
+    def columns(img):  # image columns holding character pixels (coloured: neither white nor the grey floor)
+        return int(((img.astype(int).std(-1) > 40).sum(0) > 0).sum())
+    one = render.render_keyframes(walk, [0], size=(120, 240), trajectory=False, view="side")
+    three = render.render_keyframes(walk, [0, 30, 59], size=(120, 240), trajectory=False, view="side")
+    lined = render.render_keyframes(walk, [0, 30, 59], lines=[(curve, red)], size=(120, 240), trajectory=False)
+    assert reddish(three) == 0 and reddish(lined) > 50  # the curve is drawn, only when asked
+    assert columns(three) > 3 * columns(one)  # three poses spread along the path (seen from the side), not one
+    with pytest.raises(ValueError, match="at least one frame"):
+        render.render_keyframes(walk, [])
+
+
+def test_control_is_a_reproduce_entry_recorded_in_the_manifest(tmp_path):
+    import json
+
+    from course_lib.experiments import control as X
+    from course_lib.reproduce import EXPERIMENTS
+
+    assert "control" in EXPERIMENTS
+    (tmp_path / "MANIFEST.json").write_text(json.dumps({"gmm_rnn": {"command": "x", "sha256": "ab"}}))
+    with pytest.raises(FileNotFoundError, match="reproduce control"):
+        X.recorded_results(tmp_path)
+    X.record_results({"offline": {"line/walk/ours": {"end_distance_m": 0.1}}}, tmp_path)
+    table = json.loads((tmp_path / "MANIFEST.json").read_text())
+    assert set(table) == {"control", "gmm_rnn"} and table["control"]["command"] == X.COMMAND
+    assert X.recorded_results(tmp_path)["offline"]["line/walk/ours"]["end_distance_m"] == 0.1
+
+
+def test_named_curves_and_their_durations():
+    from course_lib.experiments import control as X
+
+    lengths = {n: float(E.arc_lengths(X.curve(n))[-1]) for n in X.CURVES}
+    assert lengths["line"] == pytest.approx(6.0) and lengths["circle_r2"] == pytest.approx(4 * math.pi, rel=1e-3)
+    assert lengths["u_turn"] == pytest.approx(4 + math.pi, rel=1e-3)
+    assert np.allclose(X.curve("u_turn")[-1], [2.0, 0.0])  # a 180-degree turn: back beside the start
+    assert X.seconds_for(X.curve("line"), "walk") == pytest.approx(6.0 / X.PACE["walk"])
+    with pytest.raises(ValueError, match="unknown curve"):
+        X.curve("spiral")

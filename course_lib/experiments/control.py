@@ -1,0 +1,366 @@
+"""Lesson 04's experiment: MAP motion control with the shipped GMM-RNN as the prior (Wang, Chai et al. 2021,
+sec. 5.2-5.4), measured on held-out start frames and clips, against the baselines a reader would try first.
+
+    python -m course_lib.reproduce control              # every measurement -> the "control" entry of the manifest
+    python -m course_lib.reproduce control --eval-only  # the same (nothing is trained: it uses gmm_rnn.pt)
+
+Taught in notebooks/04_map_control.ipynb, which reads the recorded results (``recorded_results``) in CI mode.
+
+- offline design: 5 curves x walking and running (``CURVES``), ours (candidates -> PSO -> L-BFGS) against
+  L-BFGS from one sample, the best of 64 samples per window, the RNN without control, greedy steering; and
+  on two cases ours against L-BFGS alone and best-of-N at equal wall time;
+- online control: a scripted run per gait (speed changes, +-180-degree turns), settling times and frames/s;
+- denoising: held-out clips with data_scripts/make_noisy.py's noise (``datasets.noisy_copies``), ours against
+  a zero-phase Butterworth low-pass and a Savitzky-Golay filter at their best settings (picked on the same clips,
+  which favours them);
+- eq. (26): the first-frame joint speed from the zero and the estimated initial state, beside mocap's.
+
+Differs from the issue: the refiner-alone denoising baseline is not measured (not built yet).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from course_lib.reproduce import CHECKPOINTS, rounded
+
+__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "filter_motion",
+           "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
+           "recorded_results"]
+
+COMMAND = "python -m course_lib.reproduce control"
+PACE = {"walk": 1.2, "run": 2.5}  # m/s each curve is asked at (held-out walks: median 1.07; runs: 2.86)
+CURVES = ("line", "circle_r2", "s_curve", "u_turn", "polyline")
+METHODS = ("ours", "lbfgs", "best_of_n", "random", "greedy")
+
+
+def curve(name: str) -> np.ndarray:
+    """A named floor polyline (K, 2), metres, from (0, 0) heading +Z."""
+    if name == "line":
+        return np.array([[0.0, 0.0], [0.0, 6.0]])
+    if name == "circle_r2":
+        t = np.linspace(0, 2 * np.pi, 73)
+        return np.stack((2 - 2 * np.cos(t), 2 * np.sin(t)), -1)
+    if name == "s_curve":
+        s = np.linspace(0, 1, 60)
+        return np.stack((0.8 * np.sin(2 * np.pi * s), 6 * s), -1)
+    if name == "u_turn":  # 2 m, a 180-degree turn of radius 1 m, 2 m back
+        t = np.linspace(0, np.pi, 25)
+        arc = np.stack((1 - np.cos(t), 2 + np.sin(t)), -1)
+        return np.concatenate(([[0.0, 0.0]], arc, [[2.0, 0.0]]))
+    if name == "polyline":  # the kind a student types
+        return np.array([[0.0, 0.0], [0.0, 2.0], [1.5, 3.5], [1.5, 5.5]])
+    raise ValueError(f"unknown curve {name!r}; choose one of {', '.join(CURVES)}")
+
+
+def seconds_for(c: np.ndarray, gait: str) -> float:
+    """The duration that asks the gait's pace (PACE) along the curve."""
+    return float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum() / PACE[gait])
+
+
+# ----------------------------------------------------------------------------- offline design
+
+
+def measure_design(m, c: np.ndarray) -> dict:
+    """A designed motion against its curve: root-to-curve distance (mean, max), end distance, foot skate."""
+    from course_lib.control.energy import nearest_on_polyline
+    from course_lib.evaluation import foot_skate
+
+    xz = torch.from_numpy(m.root_positions[:, [0, 2]])
+    _, dist = nearest_on_polyline(xz, torch.from_numpy(c))
+    return {"mean_root_to_curve_m": float(dist.mean()), "max_root_to_curve_m": float(dist.max()),
+            "end_distance_m": float(np.linalg.norm(m.root_positions[-1, [0, 2]] - c[-1])),
+            "foot_skate_m_s": float(foot_skate([m])), "frames": len(m)}
+
+
+def _config(method: str, scale: float = 1.0):
+    from course_lib.control import DesignConfig
+    from course_lib.control.lbfgs import LbfgsConfig
+
+    if method == "ours":
+        return DesignConfig()
+    if method == "lbfgs":  # L-BFGS from one RNN sample, no PSO (baseline d)
+        return DesignConfig(candidates=1, use_pso=False, lbfgs=LbfgsConfig(iterations=max(1, round(40 * scale))))
+    if method == "best_of_n":  # sampling alone, no gradients (baseline c)
+        return DesignConfig(candidates=max(1, round(64 * scale)), use_pso=False, use_lbfgs=False)
+    raise ValueError(method)
+
+
+def offline_case(name: str, gait: str, method: str, seed: int = 0, scale: float = 1.0):
+    """-> (the designed / generated motion, its wall time in s) for one curve, gait and method."""
+    from course_lib.control import design_motion
+
+    c = curve(name)
+    t0 = time.perf_counter()
+    if method in ("random", "greedy"):
+        m = _run_free(c, seconds_for(c, gait), gait, seed, greedy=method == "greedy")
+    else:
+        m = design_motion(c, seconds_for(c, gait), gait, seed=seed, config=_config(method, scale))
+    return m, time.perf_counter() - t0
+
+
+def _run_free(c: np.ndarray, seconds: float, gait: str, seed: int, greedy: bool):
+    """The RNN run without control (baseline a) or steered frame by frame (baseline b: each frame's sampled
+    root step turned towards a point 0.5 m ahead on the curve, at most 0.1 rad, and scaled to the pace)."""
+    from course_lib.control.design import _second_pose, default_prior, prepare_start
+    from course_lib.control.energy import arc_lengths, arc_position, polyline_between
+    from course_lib.control.kinematics import heading_yaw
+    from course_lib.representations import decode_state_features
+
+    prior = default_prior()
+    raw0, init0, start = prepare_start(None, gait, seed, (c[0, 0], c[0, 1], float(heading_yaw(
+        torch.from_numpy(c[1] - c[0])))), prior)
+    g = torch.Generator().manual_seed(seed)
+    state, prev = prior.start_state(raw0, start.skeleton), raw0.double()
+    x, z, yaw = (float(v) for v in _second_pose(raw0, init0))
+    L, step_len, s = float(arc_lengths(c)[-1]), float(arc_lengths(c)[-1]) / seconds / 30, 0.0
+    frames = []
+    for _ in range(max(int(round(seconds * 30)), 3) - 2):
+        f = prior.sample(prev, state, 1, start.skeleton, g, bias=1.0)  # (1, 1, D)
+        if greedy:
+            s = arc_position(c, (x, z), s, s + 1.0)
+            ahead = polyline_between(c, s, min(s + 0.5, L))[-1]
+            turn = (math.atan2(ahead[0] - x, ahead[1] - z) - yaw + math.pi) % (2 * math.pi) - math.pi
+            f[0, 0, 2] = float(np.clip(turn, -0.1, 0.1))
+            n = float(torch.hypot(f[0, 0, 0], f[0, 0, 1]))
+            if n > 1e-6:
+                f[0, 0, 0:2] *= step_len / n
+        state = prior.advance(prev, f, state, start.skeleton)
+        prev = torch.cat((prev, f), 1)[:, -2:]
+        d = f[0, 0].numpy()
+        co, si = math.cos(yaw), math.sin(yaw)
+        x, z, yaw = x + co * d[0] + si * d[1], z - si * d[0] + co * d[1], yaw + d[2]
+        frames.append(f[0])
+    feats = torch.cat([raw0[0]] + frames, 0).numpy()
+    return decode_state_features(feats, start.skeleton, 30.0, tuple(float(v) for v in init0))
+
+
+def offline_eval(seed: int = 0, curves=CURVES, gaits=("walk", "run"), methods=METHODS, progress=print) -> dict:
+    """Every curve x gait x method -> {"curve/gait/method": measure_design + seconds}."""
+    rows = {}
+    for name in curves:
+        for gait in gaits:
+            for method in methods:
+                m, sec = offline_case(name, gait, method, seed)
+                key = f"{name}/{gait}/{method}"
+                rows[key] = {**measure_design(m, curve(name)), "seconds": sec}
+                if method in ("ours", "lbfgs", "greedy"):  # the root path, every 3rd frame, for the lesson's plots
+                    rows[key]["root_xz"] = np.round(m.root_positions[::3, [0, 2]], 3).tolist()
+                if progress:
+                    progress(key, {k: round(v, 3) for k, v in rows[key].items() if not isinstance(v, list)})
+    return rows
+
+
+def equal_time_eval(seed: int = 0, cases=(("s_curve", "walk"), ("line", "run")), progress=print) -> dict:
+    """Ours against L-BFGS alone and best-of-N given (about) ours' wall time: their budgets are scaled by the
+    ratio of ours' time to theirs at the default budget (measured on the same case)."""
+    out = {}
+    for name, gait in cases:
+        m, t_ours = offline_case(name, gait, "ours", seed)
+        row = {"ours": {**measure_design(m, curve(name)), "seconds": t_ours}}
+        for method in ("lbfgs", "best_of_n"):
+            _, t1 = offline_case(name, gait, method, seed)
+            scale = t_ours / max(t1, 1e-3)
+            m, t = offline_case(name, gait, method, seed, scale=scale)
+            row[method] = {**measure_design(m, curve(name)), "seconds": t, "budget_scale": scale}
+        out[f"{name}/{gait}"] = row
+        if progress:
+            progress(name, gait, {k: round(v["end_distance_m"], 3) for k, v in row.items()})
+    return out
+
+
+# ----------------------------------------------------------------------------- online control
+
+
+def online_program(gait: str) -> list[tuple[float, float, float]]:
+    """(seconds, speed m/s, direction rad) segments: speed changes, then +180 and -180-degree turns."""
+    v = PACE[gait]
+    return [(3.0, v, 0.0), (3.0, 0.6 * v, 0.0), (3.0, 1.3 * v, 0.0), (4.0, v, math.pi), (4.0, v, 0.0)]
+
+
+def online_run(gait: str = "walk", seed: int = 0) -> dict:
+    """The scripted run -> per batch (time, commanded speed and direction, measured net speed and heading),
+    the speed settling times (within 10 % of a changed command), the turn times (heading within 10 degrees
+    of a +-180-degree command), frames/s of the whole run on this core, the latency in frames."""
+    from course_lib.control import OnlineController
+
+    ctrl = OnlineController(gait, seed=seed)
+    dt = ctrl.config.batch / ctrl.fps
+    log, t, t0 = [], 0.0, time.perf_counter()
+    for seconds, speed, direction in online_program(gait):
+        for _ in range(int(round(seconds / dt))):
+            m = ctrl.step(speed, direction)
+            xz = m.root_positions[:, [0, 2]]
+            before = log[-1]["xz"] if log else ctrl.motion().root_positions[1, [0, 2]]
+            t += dt
+            log.append({"t": t, "speed_cmd": speed, "dir_cmd": direction, "xz": xz[-1],
+                        "speed": float(np.linalg.norm(xz[-1] - before) / dt), "heading": ctrl.heading})
+    wall = time.perf_counter() - t0
+    return {"batches": [{k: (float(v) if k != "xz" else [float(a) for a in v]) for k, v in r.items()} for r in log],
+            "speed_settle_s": _settle(log, "speed_cmd", lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),
+            "turn_s": _settle(log, "dir_cmd", lambda r: abs(_wrap(r["heading"] - r["dir_cmd"])) <= math.radians(10)),
+            "frames_per_s": len(log) * ctrl.config.batch / wall, "latency_frames": ctrl.config.batch,
+            "seconds": wall}
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _settle(log: list, key: str, ok) -> list:
+    """For every change of log[i][key]: seconds from the change until ok(row) first holds (None: never)."""
+    out = []
+    for i in range(1, len(log)):
+        if log[i][key] != log[i - 1][key]:
+            t_change = log[i - 1]["t"]
+            hit = next((r["t"] - t_change for r in log[i:] if r[key] == log[i][key] and ok(r)), None)
+            out.append({"at_s": t_change, "to": log[i][key], "seconds": hit})
+    return out
+
+
+# ----------------------------------------------------------------------------- denoising
+
+
+def filter_motion(motion, kind: str, param: float):
+    """A channel-wise zero-phase filter of the state features (root steps, height, pitch, roll, joint expmaps;
+    the contact bits kept): kind "butter" (4th-order Butterworth low-pass, cutoff param Hz, filtfilt) or
+    "savgol" (Savitzky-Golay, window param frames, cubic) -> the filtered Motion."""
+    from scipy.signal import butter, filtfilt, savgol_filter
+
+    from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+    f = encode_state_features(motion)  # (T, D)
+    cols = slice(0, f.shape[1] - 2)
+    out = f.copy()
+    if kind == "butter":
+        b, a = butter(4, param / (motion.fps / 2))
+        out[:, cols] = filtfilt(b, a, f[:, cols], axis=0)
+    elif kind == "savgol":
+        out[:, cols] = savgol_filter(f[:, cols], int(param), 3, axis=0)
+    else:
+        raise ValueError(f"filter_motion: kind must be 'butter' or 'savgol', got {kind!r}")
+    out[0] = f[0]
+    return decode_state_features(out, motion.skeleton, motion.fps, root_start(motion))
+
+
+def _denoise_scores(out, clean) -> dict:
+    from course_lib.evaluation import foot_skate
+
+    err = np.linalg.norm(out.positions() - clean.positions(), axis=-1)  # (T, J)
+    return {"mean_joint_error_m": float(err.mean()), "max_joint_error_m": float(err.max()),
+            "foot_skate_m_s": float(foot_skate([out])),
+            "contact_agreement": float((out.contacts() == clean.contacts()).mean())}
+
+
+BUTTER_CUTOFFS = (3.0, 4.0, 6.0, 8.0, 10.0, 12.0)  # Hz (Nyquist: 15)
+SAVGOL_WINDOWS = (5, 7, 9, 13, 17)  # frames at 30 fps
+
+
+def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict:
+    """Held-out walks and runs with make_noisy.py's noise: noisy input, ours, the best Butterworth and the best
+    Savitzky-Golay (best mean joint error over these clips) -> mean scores per method, and the clean clips'."""
+    from course_lib.control import denoise
+    from course_lib.control.starts import held_out_clips
+    from course_lib.datasets import noisy_copies
+
+    clean = [m for g in ("walk", "run") for m in held_out_clips(g)[:clips_per_gait]]
+    noisy = noisy_copies(clean, seed + 1)
+    per = {"noisy": [_denoise_scores(n, c) for n, c in zip(noisy, clean, strict=True)]}
+    t0 = time.perf_counter()
+    per["ours"] = [_denoise_scores(denoise(n, seed=seed), c) for n, c in zip(noisy, clean, strict=True)]
+    ours_s = time.perf_counter() - t0
+    best = {}
+    pairs = list(zip(noisy, clean, strict=True))
+    for kind, params in (("butter", BUTTER_CUTOFFS), ("savgol", SAVGOL_WINDOWS)):
+        tries = {p: [_denoise_scores(filter_motion(n, kind, p), c) for n, c in pairs] for p in params}
+        p = min(tries, key=lambda q: np.mean([r["mean_joint_error_m"] for r in tries[q]]))
+        per[kind], best[kind] = tries[p], p
+    mean = {k: {s: float(np.mean([r[s] for r in v])) for s in v[0]} for k, v in per.items()}
+    from course_lib.evaluation import foot_skate
+
+    out = {"mean": mean, "best_setting": {"butter_cutoff_hz": best["butter"], "savgol_window": best["savgol"]},
+           "clean_foot_skate_m_s": float(foot_skate(clean)), "clips": len(clean), "ours_seconds": ours_s}
+    if progress:
+        progress("denoise", {k: round(v["mean_joint_error_m"], 4) for k, v in mean.items()})
+    return out
+
+
+# ----------------------------------------------------------------------------- eq. (26)
+
+
+def initial_state_eval(clips_per_gait: int = 10) -> dict:
+    """Mean joint speed (m/s) from s_1 to the predicted s_2 with the zero and the eq. (26) state, and mocap's own
+    s_1 -> s_2, over held-out walks and runs (frames 10, 11 of each clip)."""
+    from course_lib.control.design import default_prior
+    from course_lib.control.initial_state import estimate_initial_state, first_frame_speed, predicted_second
+    from course_lib.control.starts import held_out_clips
+    from course_lib.representations import encode_state_features
+
+    prior = default_prior()
+    rows = {"zero_state": [], "estimated_state": [], "mocap": []}
+    for gait in ("walk", "run"):
+        for clip in held_out_clips(gait)[:clips_per_gait]:
+            raw = prior.clean(torch.from_numpy(encode_state_features(clip)[10:12]))[None]
+            state, _ = estimate_initial_state(prior, raw, clip.skeleton, steps=100)
+            for name, h1 in (("zero_state", None), ("estimated_state", state)):
+                pair = torch.cat((raw[:, :1], predicted_second(prior, raw, h1, clip.skeleton)), 1)
+                rows[name].append(first_frame_speed(pair, clip.skeleton))
+            rows["mocap"].append(first_frame_speed(raw, clip.skeleton))
+    out = {k: {"mean_joint_speed_m_s": float(np.mean(v)), "max": float(np.max(v))} for k, v in rows.items()}
+    out["clips"] = len(rows["mocap"])
+    return out
+
+
+# ----------------------------------------------------------------------------- the commands
+
+
+def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print) -> dict:
+    """Every measurement of lesson 04 on the shipped GMM-RNN (checkpoints/gmm_rnn.pt)."""
+    import json
+
+    torch.set_num_threads(1)
+    t0, times = time.perf_counter(), {}
+    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE,
+           "gmm_rnn_sha256": json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]}
+    for key, fn in (("offline", lambda: offline_eval(seed, progress=progress)),
+                    ("equal_time", lambda: equal_time_eval(seed, progress=progress)),
+                    ("online", lambda: {g: online_run(g, seed) for g in ("walk", "run")}),
+                    ("denoise", lambda: denoise_eval(seed, progress=progress)),
+                    ("initial_state", initial_state_eval)):
+        t = time.perf_counter()
+        out[key] = fn()
+        times[key] = time.perf_counter() - t
+    out["seconds"] = times
+    out["total_seconds"] = time.perf_counter() - t0
+    out = rounded(out, 5)
+    record_results(out, checkpoints)
+    return out
+
+
+def train_control(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS) -> dict:
+    """Nothing to train (the prior is lesson 03's gmm_rnn.pt): the evaluation, recorded in the manifest."""
+    return eval_control(seed, checkpoints)
+
+
+def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> None:
+    """Store the results as the manifest's "control" entry (no checkpoint file of its own)."""
+    from course_lib.training import _update_manifest
+
+    _update_manifest(checkpoints / "MANIFEST.json", "control",
+                     {"command": COMMAND, "uses": ["gmm_rnn.pt"], "results": results})
+
+
+def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
+    """The results stored by `record_results`."""
+    import json
+
+    entry = json.loads((checkpoints / "MANIFEST.json").read_text()).get("control")
+    if entry is None:
+        raise FileNotFoundError("no 'control' entry in checkpoints/MANIFEST.json: run python -m course_lib.reproduce "
+                                "control")
+    return entry["results"]
