@@ -16,6 +16,7 @@ from course_lib.models.refiner import (
     discriminator_loss,
     end_effector_features,
     local_positions,
+    pose_regularisation,
     refiner_adversarial_loss,
     refiner_loss,
     root_regularisation,
@@ -247,6 +248,34 @@ def test_discriminator_sees_binary_contact_bits_with_a_straight_through_gradient
     d_in[..., -2].sum().backward()
     assert torch.equal(x.grad[..., 66], torch.ones(2, 6))  # identity gradient to the soft bit
     assert D(d_in).shape == (2,)
+
+
+def test_contact_bit_gradient_stops_outside_zero_one():
+    """A bit already past 0 or 1 gets no gradient: R cannot push it without bound (the shipped GAN2's raw bits
+    reached +-135 when the straight-through gradient passed at any value)."""
+    R = Refiner(tiny(discriminator_contacts=True))
+    x = torch.zeros(3, 4, 68)
+    x[:, :, 66] = torch.tensor([1.7, -0.4, 0.6])[:, None]
+    x.requires_grad_(True)
+    d_in = R.discriminator_input(x)
+    assert torch.equal(d_in[:, 0, -2], torch.tensor([1.0, 0.0, 1.0]))
+    d_in[..., -2].sum().backward()
+    assert torch.equal(x.grad[:, :, 66], torch.tensor([0.0, 0.0, 1.0])[:, None].expand(3, 4))
+
+
+def test_pose_regularisation_known_answer_and_columns():
+    """mean (R(x) - x)^2 over the pose columns: a change of 2 sd on one of 66 pose columns gives 4 / 66;
+    a change of the contact bits costs nothing; GAN1's pose columns exclude the bits it never changes."""
+    c = tiny(pose_lam=3.0)
+    assert c.pose_dims == tuple(range(66)) and tiny(contacts=False).pose_dims == tuple(range(66))
+    x = torch.randn(2, 5, 68)
+    y = x.clone()
+    y[..., 10] += 2.0
+    assert pose_regularisation(x, y, c.pose_dims).item() == pytest.approx(4.0 / 66, rel=1e-6)
+    y[..., 66:] += 5.0
+    assert pose_regularisation(x, y, c.pose_dims).item() == pytest.approx(4.0 / 66, rel=1e-6)
+    with pytest.raises(ValueError, match="pose_lam"):
+        tiny(pose_lam=-1.0)
 
 
 def test_balance_rule_keeps_r_at_chance_and_reacts_on_both_sides():

@@ -76,6 +76,9 @@ class Lesson03Spec:
     d_loss_low: float = 0.1
     d_loss_high: float = 0.693
     schedule_smooth: int = 5
+    refiner_pose_lam: float = 0.0  # R's pose self-regularisation (SimGAN's, not in eq. 13; RefinerConfig.pose_lam)
+    discriminator_joints: str = "end_effectors"  # D sees eq. 12's end effectors, or "all" joints (RefinerConfig)
+    discriminator_contacts: bool = True  # GAN2's D also sees the contact bits (sec. 4.3 "augment ... input and output")
     pool_sequences: int = 320  # RNN motions generated once for refiner training
     pool_frames: int = 240  # frames per pooled RNN motion (8 s)
     seeds: tuple = (0, 1, 2)  # refiner seeds, one checkpoint per seed and refiner
@@ -288,7 +291,9 @@ def train_gan(pool: RnnPool, ds: WindowDataset, spec: Lesson03Spec, contacts: bo
     paper's rule with spec's thresholds and smoothing, r capped at spec.max_r_updates)."""
     from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
 
-    config = RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts, fps=spec.fps)
+    config = RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts and spec.discriminator_contacts,
+                               fps=spec.fps, pose_lam=spec.refiner_pose_lam,
+                               discriminator_joints=spec.discriminator_joints)
     torch.manual_seed(seed)
     refiner, disc = Refiner(config, stats=ds.stats), Discriminator(config)
     g = torch.Generator().manual_seed(seed)
@@ -489,6 +494,7 @@ def _gan_summary(hist) -> dict:
     r = list(hist.step.get("r_updates", []))
     return {"seconds": hist.seconds, "rounds": hist.num_steps, "final_d_loss": hist.final("d_loss", 20),
             "final_adversarial": hist.final("adversarial", 20), "final_root": hist.final("root", 20),
+            "final_pose": hist.final("pose", 20),
             "final_d_acc_fake": hist.final("d_acc_fake", 20), "max_r_updates_used": max(hist.r_schedule or [0]),
             "refiner_updates": int(sum(r)), "r_changes": int(np.count_nonzero(np.diff(r))),
             "rounds_at_r1": float(np.mean([v == 1 for v in r])) if r else 0.0}

@@ -47,6 +47,12 @@ Differs from the paper:
 - each motion's own skeleton: R and D compute p_end and v_end with the rest offsets of the subject the
   motion belongs to (``offsets=`` (N, J, 3); the canonical skeleton when None), as the evaluation decodes
   every clip on its own skeleton (the subjects' scales are 0.97-1.09).
+- ``pose_lam`` > 0 (not in eq. 13): SimGAN's self-regularisation on the pose as well, pose_lam times the mean
+  squared change (R(x) - x)^2 of every refined column but the contact bits, in sd units.  Eq. 13 keeps only the
+  root near x; with D seeing five end effectors, R then changed the spine, shoulders and arms by 1.4-2.5 sd,
+  which alone raised the FID from 254 to 2060 (tools/gmm_rnn_refiner_selfreg.py, the clamp test).
+- ``discriminator_joints="all"`` (not in eq. 12): D sees the floor-frame positions and velocities of every joint,
+  not only the end effectors (R's input is unchanged).
 - ``discriminator_contacts=True`` (not in eq. 12, off in the paper's config, on for our GAN2): D also sees
   the two contact bits, thresholded at 0.5 with a straight-through gradient (D sees 0/1 for real and
   refined motions alike, R gets the gradient of the soft bit), so R learns bits that match its feet.
@@ -68,7 +74,7 @@ from course_lib.skeleton import Skeleton
 
 __all__ = ["AdversarialSchedule", "Discriminator", "HistoryBuffer", "Refiner", "RefinerConfig",
            "discriminator_loss", "end_effector_features", "local_positions",
-           "refiner_adversarial_loss", "refiner_loss", "root_regularisation", "root_trajectory",
+           "pose_regularisation", "refiner_adversarial_loss", "refiner_loss", "root_regularisation", "root_trajectory",
            "train_refiner"]
 
 
@@ -84,8 +90,10 @@ class RefinerConfig:
     d_lstm_width: int = 500  # D's BiLSTM, per direction (Fig. 5)
     contacts: bool = True  # GAN2 (contact-aware, sec. 4.3); False = GAN1
     discriminator_contacts: bool = False  # D also sees the contact bits (not in eq. 12, see "differs")
+    discriminator_joints: str = "end_effectors"  # whose positions and velocities D sees: eq. 12's, or "all" joints
     contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits
     lam: float = 20.0  # lambda of the root self-regularisation, eq. (13)
+    pose_lam: float = 0.0  # weight of the pose self-regularisation (SimGAN's; not in eq. 13, see "differs")
     fps: float = 30.0  # frame rate of the features (for v_end in m/s)
     lr_refiner: float = 0.002  # RMSProp (sec. 4.2.2)
     lr_discriminator: float = 0.005  # RMSProp (sec. 4.2.2)
@@ -115,6 +123,11 @@ class RefinerConfig:
             raise ValueError(f"RefinerConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
         if not 0 < self.d_loss_low < self.d_loss_high:
             raise ValueError(f"RefinerConfig: need 0 < d_loss_low < d_loss_high, got {self}")
+        if not (math.isfinite(self.pose_lam) and self.pose_lam >= 0):
+            raise ValueError(f"RefinerConfig: pose_lam must be finite and >= 0, got {self.pose_lam}")
+        if self.discriminator_joints not in ("end_effectors", "all"):
+            raise ValueError(f"RefinerConfig: discriminator_joints must be 'end_effectors' or 'all', got "
+                             f"{self.discriminator_joints!r}")
         if self.discriminator_contacts and not self.contacts:
             raise ValueError("RefinerConfig: discriminator_contacts needs contacts=True (GAN1 cannot change the bits)")
 
@@ -125,9 +138,25 @@ class RefinerConfig:
             tuple(c for c in range(self.dim) if c not in self.contact_dims)
 
     @property
+    def pose_dims(self) -> tuple[int, ...]:
+        """The columns the pose self-regularisation keeps near x: every refined column but the contact bits."""
+        return tuple(c for c in self.refined_dims if c not in self.contact_dims)
+
+    @property
+    def num_joints(self) -> int:
+        """Joints of the skeleton the features describe: dim = 6 + 3 (J - 1) + 2."""
+        return (self.dim - 8) // 3 + 1
+
+    @property
+    def d_joints(self) -> int:
+        """How many joints D sees: the end effectors (eq. 12) or all of them."""
+        return self.num_end_effectors if self.discriminator_joints == "end_effectors" else self.num_joints
+
+    @property
     def d_input_dim(self) -> int:
-        """Width of D's per-frame input: p_end, v_end (3 E each) and the contact bits if D sees them."""
-        return 6 * self.num_end_effectors + (len(self.contact_dims) if self.discriminator_contacts else 0)
+        """Width of D's per-frame input: positions and velocities (3 each per joint D sees) and the contact bits
+        if D sees them."""
+        return 6 * self.d_joints + (len(self.contact_dims) if self.discriminator_contacts else 0)
 
 
 # ----------------------------------------------------------------------------- kinematics in torch
@@ -166,13 +195,15 @@ def root_trajectory(features: torch.Tensor, init=(0.0, 0.0, 0.0)) -> tuple[torch
 
 
 def end_effector_features(features: torch.Tensor, skeleton: Skeleton, fps: float,
-                          offsets: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-    """Raw state features (..., T, D) -> p_end, v_end: (..., T, 3E) each (E = leaf joints).
+                          offsets: torch.Tensor | None = None, joints=None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Raw state features (..., T, D) -> p_end, v_end: (..., T, 3E) each (E = leaf joints, or the joint indices
+    ``joints``).
 
     p_end: positions in the frame's floor frame; v_end: (p_t - p_{t-1}) expressed in frame t-1's
     floor frame, times fps: R_y(dyaw_t) p^local_t + (dx_t, 0, dz_t) - p^local_{t-1}.
     """
-    pos = local_positions(features, skeleton, offsets)[..., list(skeleton.end_effectors), :]  # (..., T, E, 3)
+    joints = list(skeleton.end_effectors) if joints is None else [int(j) for j in joints]
+    pos = local_positions(features, skeleton, offsets)[..., joints, :]  # (..., T, E, 3)
     T = pos.shape[-3]
     if T < 2:
         raise ValueError(f"end_effector_features needs T >= 2 frames for velocities, got {T}")
@@ -236,11 +267,18 @@ class Refiner(nn.Module):
     def discriminator_input(self, x: torch.Tensor, offsets=None) -> torch.Tensor:
         """Normalised x (N, T, D) -> D's input (N, T, config.d_input_dim): [p_end, v_end] (eq. 12), plus the
         contact bits thresholded at 0.5 with a straight-through gradient if D sees them (see "differs")."""
-        parts = list(self.end_effectors(x, offsets))
+        if self.config.discriminator_joints == "all":
+            parts = list(end_effector_features(self.raw(x), self.skeleton, self.config.fps, self._offsets(x, offsets),
+                                               joints=range(self.skeleton.num_joints)))
+        else:
+            parts = list(self.end_effectors(x, offsets))
         if self.config.discriminator_contacts:
             cols = list(self.config.contact_dims)
             soft = self.raw(x)[..., cols]  # (N, T, 2) raw bits
-            parts.append((soft > 0.5).to(soft.dtype) + soft - soft.detach())  # 0/1 forward, identity backward
+            # 0/1 forward; backward the gradient of the soft bit clipped to [0, 1], so R cannot push a bit
+            # without bound (it did: raw bits of +-135 when the gradient passed at any value)
+            clipped = soft.clamp(0.0, 1.0)
+            parts.append((soft > 0.5).to(soft.dtype) + clipped - clipped.detach())
         return torch.cat(parts, -1)
 
     def forward(self, x: torch.Tensor, offsets=None) -> torch.Tensor:
@@ -302,6 +340,13 @@ def discriminator_loss(d_real_logits: torch.Tensor, d_fake_logits: torch.Tensor)
 def root_regularisation(x_raw: torch.Tensor, refined_raw: torch.Tensor) -> torch.Tensor:
     """Raw features (N, T, D) of x and R(x) -> ||root(x) - root(R(x))||^2 (sum over xyz, mean over N, T)."""
     return ((root_trajectory(x_raw)[0] - root_trajectory(refined_raw)[0]) ** 2).sum(-1).mean()
+
+
+def pose_regularisation(x: torch.Tensor, refined: torch.Tensor, cols) -> torch.Tensor:
+    """Normalised features (N, T, D) of x and R(x), the pose columns -> mean over N, T and the columns of
+    (R(x) - x)^2: SimGAN's self-regularisation (Shrivastava et al. 2017) on the pose, in sd units."""
+    cols = torch.as_tensor(list(cols), dtype=torch.long, device=x.device)
+    return (refined.index_select(-1, cols) - x.index_select(-1, cols)).pow(2).mean()
 
 
 def refiner_loss(d_fake_logits: torch.Tensor, x_raw: torch.Tensor, refined_raw: torch.Tensor,
@@ -436,7 +481,7 @@ def _d_accuracy(real_logits: torch.Tensor, fake_logits: torch.Tensor) -> tuple[f
 
 def _refiner_step(refiner, discriminator, opt_r, batch, lam: float, adversarial: bool) -> dict:
     """One R update on batch = (x (N, T, D), offsets): eq. (13) if adversarial, else only
-    lambda ||root(x) - root(R(x))||^2."""
+    lambda ||root(x) - root(R(x))||^2; both plus config.pose_lam times the pose self-regularisation."""
     x, off = batch
     refined = refiner(x, off)
     if adversarial:
@@ -445,6 +490,10 @@ def _refiner_step(refiner, discriminator, opt_r, batch, lam: float, adversarial:
     else:  # warm-up: the self-regularisation term of eq. (13) alone (SimGAN's refiner pre-training)
         reg = root_regularisation(refiner.raw(x), refiner.raw(refined))
         terms = {"loss": lam * reg, "adversarial": torch.tensor(float("nan")), "root": reg.detach()}
+    pose = pose_regularisation(x, refined, refiner.config.pose_dims)
+    terms["pose"] = pose.detach()
+    if refiner.config.pose_lam > 0:
+        terms["loss"] = terms["loss"] + refiner.config.pose_lam * pose
     if not torch.isfinite(terms["loss"]):
         raise FloatingPointError(f"refiner loss is {float(terms['loss'])}")
     opt_r.zero_grad(set_to_none=True)
@@ -544,7 +593,7 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
             break
         n_r, n_d = schedule.next_round()
         steps = [_refiner_step(refiner, discriminator, opt_r, rnn(), c.lam, adversarial=True) for _ in range(n_r)]
-        logs = {k: float(np.mean([s[k] for s in steps])) for k in ("loss", "adversarial", "root")}
+        logs = {k: float(np.mean([s[k] for s in steps])) for k in ("loss", "adversarial", "root", "pose")}
         for _ in range(n_d):
             logs.update(_discriminator_step(refiner, discriminator, opt_d, buffer, rnn(), real(), half))
         logs["r_updates"] = n_r
