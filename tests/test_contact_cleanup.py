@@ -6,7 +6,7 @@ import torch
 
 from course_lib.datasets import generate_locomotion_set
 from course_lib.evaluation import foot_skate
-from course_lib.models.contact_cleanup import TOE_FLOOR, enforce_contacts, toe_floor_height
+from course_lib.models.contact_cleanup import TOE_FLOOR, enforce_contacts, plant_feet, toe_floor_height
 from course_lib.models.refiner import local_positions
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 
@@ -88,3 +88,37 @@ def test_a_flagged_foot_in_the_air_is_not_the_stance_foot(clip):
     gated = enforce_contacts(bad, clip.skeleton)
     assert trusted[t, 3] < f[t, 3] - 0.04  # trusting the bit pulls the body down to put that toe on the floor
     assert abs(gated[t, 3] - f[t, 3]) < 0.01  # the gate keeps the height (interpolated from the neighbours)
+
+
+LEG_COLUMNS = [0, 1, 3, 6, 7, 8, 9, 12, 13, 14, 18, 19, 20, 21, 24, 25, 26]  # root step, height, hip/knee/ankle
+
+
+def flagged_toe_steps(features, clip):
+    """World (x, z) step (m) of each toe between frames where it is flagged on both, as plant_feet pins them."""
+    pos, toes = decoded(features, clip).positions(), list(clip.skeleton.feet[1::2])
+    y = pos[:, toes, 1]
+    bits = (features[:, -2:] > 0.5) & (y <= y.min(1, keepdims=True) + 0.05)
+    pinned = bits[1:] & bits[:-1]
+    step = np.linalg.norm(np.diff(pos[:, toes][..., [0, 2]], axis=0), axis=-1)
+    return step[pinned]
+
+
+def test_plant_feet_leaves_mocap_and_pins_both_feet_of_a_sliding_motion(clip):
+    f = encode_state_features(clip)
+    g = plant_feet(f[None], clip.skeleton, LEG_COLUMNS)[0]
+    pose = lambda x: local_positions(torch.from_numpy(x), clip.skeleton).numpy()  # noqa: E731
+    assert np.abs(pose(g) - pose(f)).max() < 0.03  # mocap's pose moves under 3 cm (flagged toes to TOE_FLOOR) ...
+    assert np.abs(decoded(g, clip).positions() - clip.positions()).max() < 0.05  # ... nor its path (3 s)
+    bad = f.copy()
+    rng = np.random.default_rng(1)
+    bad[:, [6, 9, 18, 21]] += rng.normal(0, 0.03, (len(f), 4))  # hips and knees shake: the stance toes slide
+    before = flagged_toe_steps(bad, clip)
+    fixed = plant_feet(bad[None], clip.skeleton, LEG_COLUMNS)[0]
+    after = flagged_toe_steps(fixed, clip)
+    assert before.mean() * clip.fps > 0.3 and after.mean() < 0.15 * before.mean()
+    untouched = [c for c in range(68) if c not in LEG_COLUMNS]
+    assert np.array_equal(fixed[:, untouched], bad[:, untouched])  # heading, arms, tilt and bits as given
+    with pytest.raises(ValueError, match="pose columns"):
+        plant_feet(bad[None], clip.skeleton, [2])  # the heading is not a pose column
+    with pytest.raises(ValueError, match=r"\(N, T >= 2, D\)"):
+        plant_feet(bad, clip.skeleton, LEG_COLUMNS)

@@ -63,7 +63,8 @@ class Lesson03Spec:
     rnn_absolute_dims: tuple = (0, 1, 3, 4, 5)
     rnn_fixed_dims: bool = True  # the columns the data never vary are not modelled
     rnn_bernoulli_contacts: bool = True  # contact bits from a Bernoulli head
-    contact_smooth: int = 5  # frames over which the contact handling's root corrections are averaged
+    contact_method: str = "legs"  # "legs": root + leg angles (plant_feet); "root": the root alone (enforce_contacts)
+    contact_smooth: int = 5  # frames over which the "root" contact handling's corrections are averaged
     window_stride: int = 5  # frames between training windows
     rnn_noise: float = 0.1  # sd of the input noise, normalised units (sec. 4.1.3: 0.05; tools/gmm_rnn_skate.py)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
@@ -320,15 +321,31 @@ def to_motions(features: torch.Tensor, stats, like: list[Motion], fps: float) ->
     return [decode_state_features(f, m.skeleton, fps, root_start(m)) for f, m in zip(raw, like, strict=True)]
 
 
-def with_contacts(features: torch.Tensor, stats, like: list[Motion], smooth: int = 1) -> torch.Tensor:
-    """Sec. 4.3's contact handling on normalised features (N, T, D): the predicted contact bits enforced on
-    the root (contact_cleanup.enforce_contacts, corrections averaged over ``smooth`` frames), motion i on
-    like[i]'s skeleton -> normalised (N, T, D)."""
-    from course_lib.models.contact_cleanup import enforce_contacts
+def contact_columns(stats, skeleton) -> list[int]:
+    """The state-feature columns the leg contact handling may move: the root's floor step (0, 1) and height (3),
+    and the hip, knee and ankle angles that vary in the training data (not the fixed hinge components)."""
+    fixed = FixedDofs.from_stats(*stats).mask
+    legs = [j for j, name in enumerate(skeleton.names) if j > 0 and name.endswith(("UpLeg", "Leg", "Foot"))]
+    return [0, 1, 3] + [c for j in legs for c in range(3 * j + 3, 3 * j + 6) if not fixed[c]]
 
+
+def with_contacts(features: torch.Tensor, stats, like: list[Motion], smooth: int = 1,
+                  method: str = "root") -> torch.Tensor:
+    """Sec. 4.3's contact handling on normalised features (N, T, D), motion i on like[i]'s skeleton ->
+    normalised (N, T, D).  method "root": the predicted contact bits enforced on the root alone
+    (contact_cleanup.enforce_contacts, corrections averaged over ``smooth`` frames); "legs": every flagged foot
+    held still and on the floor by moving the root and the leg angles (contact_cleanup.plant_feet, L-BFGS)."""
+    from course_lib.models.contact_cleanup import enforce_contacts, plant_feet
+
+    if method not in ("root", "legs"):
+        raise ValueError(f"with_contacts: method must be 'root' or 'legs', got {method!r}")
     mean, std = stats
     raw = features.double().numpy() * std + mean
-    fixed = np.stack([enforce_contacts(r, m.skeleton, smooth=smooth) for r, m in zip(raw, like, strict=True)])
+    if method == "legs":
+        fixed = plant_feet(raw, like[0].skeleton, contact_columns(stats, like[0].skeleton),
+                           offsets=np.asarray(clip_offsets(like)))
+    else:
+        fixed = np.stack([enforce_contacts(r, m.skeleton, smooth=smooth) for r, m in zip(raw, like, strict=True)])
     return torch.from_numpy((fixed - mean) / std).to(features.dtype)
 
 
@@ -369,7 +386,7 @@ def quality_table(model, refiners: dict, test: list[Motion], stats, spec: Lesson
     a, b = [mocap[i] for i in half[: len(half) // 2]], [mocap[i] for i in half[len(half) // 2:]]
     rows = {"Mocap": quality_row(b, a, fps=spec.fps, seed=seed)}  # one half of the clips against the other
     if "GAN2" in sets:
-        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, test, spec.contact_smooth)
+        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, test, spec.contact_smooth, spec.contact_method)
     for name, feats in sets.items():
         motions = to_motions(feats, stats, test, spec.fps)
         rows[name] = quality_row(motions, mocap, fps=spec.fps, seed=seed)
@@ -403,7 +420,8 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
     if refiner is not None:
         with torch.no_grad():
             sets["GAN2"] = refiner(rnn, clip_offsets([start] * len(rnn)))
-        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn), spec.contact_smooth)
+        sets["GAN2 + contacts"] = with_contacts(sets["GAN2"], stats, [start] * len(rnn), spec.contact_smooth,
+                                                 spec.contact_method)
     heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
     toe_top = float(max(lower_toe(m.positions(), m.skeleton).max() for m in mocap))
     floor, last, ten = freeze_floor(mocap), int(5 * spec.fps), int(10 * spec.fps)

@@ -30,7 +30,7 @@ import torch
 
 from course_lib.skeleton import Skeleton
 
-__all__ = ["TOE_FLOOR", "enforce_contacts", "toe_floor_height"]
+__all__ = ["TOE_FLOOR", "enforce_contacts", "plant_feet", "toe_floor_height"]
 
 TOE_FLOOR = 0.025  # m: the synthetic skeletons' toe joint height when the foot is planted (`toe_floor_height`)
 
@@ -127,3 +127,66 @@ def _enforce_one(f: np.ndarray, toes: np.ndarray, bits: np.ndarray, toe_floor: f
         f[t, 0] = c[t - 1] * step_x - s[t - 1] * step_z
         f[t, 1] = s[t - 1] * step_x + c[t - 1] * step_z
     return f
+
+
+def plant_feet(features, skeleton: Skeleton, columns, offsets=None, toe_floor: float = TOE_FLOOR,
+               threshold: float = 0.5, max_above: float | None = 0.05, sigma_slide: float = 0.003,
+               sigma_floor: float = 0.01, sigma_angle: float = 0.1, sigma_root: float = 0.02,
+               smoothness: float = 4.0, iterations: int = 60):
+    """Raw state features (N, T, D) with contact bits -> the same with ``columns`` (e.g. the root's floor steps
+    and height and the free leg angles) moved so that every flagged foot stays still and on the floor: the
+    contact term of eq. (18) as a soft constraint, solved with L-BFGS by back-propagating through forward
+    kinematics and the eq. (4) integration (both feet may be pinned at once, which the root alone cannot do).
+
+    Minimises, per motion, sum over frame pairs where a foot is flagged on both frames of
+    ||toe_xz(t) - toe_xz(t-1)||^2 / sigma_slide^2, plus (toe_y - toe_floor)^2 / sigma_floor^2 on flagged frames,
+    plus the change of each column (sigma_angle for angles, sigma_root for the six root columns) and of its
+    frame-to-frame difference (those sigmas / ``smoothness``).  Flagged feet as in `enforce_contacts` (bit >
+    threshold, the toe within max_above of the lower toe).  offsets: (N, J, 3) each motion's rest offsets.
+    Heading and contact bits are unchanged; returns the input's type (numpy or torch)."""
+    from course_lib.models.refiner import _check_features, _rot_y, local_positions, root_trajectory
+
+    is_torch = torch.is_tensor(features)
+    f = features.detach().double() if is_torch else torch.as_tensor(np.asarray(features, dtype=np.float64))
+    _check_features(f, skeleton)
+    if f.ndim != 3 or f.shape[1] < 2:
+        raise ValueError(f"plant_feet: features must be (N, T >= 2, D), got {tuple(f.shape)}")
+    cols = torch.as_tensor(sorted({int(c) for c in columns}), dtype=torch.long)
+    if cols.numel() == 0 or cols.min() < 0 or cols.max() >= f.shape[-1] - 2 or bool((cols == 2).any()):
+        raise ValueError("plant_feet: columns must be pose columns (not the heading 2 or the contact bits), "
+                         f"got {cols.tolist()}")
+    off = None if offsets is None else torch.as_tensor(np.asarray(offsets), dtype=torch.float64)
+    toes_idx = list(skeleton.feet[1::2])
+    with torch.no_grad():
+        toes = local_positions(f, skeleton, off)[..., toes_idx, :]  # (N, T, 2, 3)
+    bits = f[..., -2:] > threshold
+    if max_above is not None:
+        bits &= toes[..., 1] <= toes[..., 1].min(-1, keepdim=True).values + max_above
+    pinned = (bits[:, 1:] & bits[:, :-1]).double()  # (N, T-1, 2)
+    flagged = bits.double()
+    scale = torch.where(cols < 6, sigma_root, sigma_angle).double()
+    delta = torch.zeros(f.shape[0], f.shape[1], len(cols), dtype=torch.float64, requires_grad=True)
+    opt = torch.optim.LBFGS([delta], lr=1.0, max_iter=int(iterations), line_search_fn="strong_wolfe")
+
+    def moved() -> torch.Tensor:
+        return f.index_add(-1, cols, delta)
+
+    def energy() -> torch.Tensor:
+        g = moved()
+        local = local_positions(g, skeleton, off)[..., toes_idx, :]  # (N, T, 2, 3)
+        root, yaw = root_trajectory(g)
+        world_xz = _rot_y(local[..., [0, 2]], yaw[..., None]) + root[..., None, [0, 2]]  # (N, T, 2, 2)
+        slide = ((world_xz[:, 1:] - world_xz[:, :-1]).pow(2).sum(-1) * pinned).sum() / sigma_slide ** 2
+        floor = ((local[..., 1] - toe_floor).pow(2) * flagged).sum() / sigma_floor ** 2
+        near = (delta / scale).pow(2).sum() + (smoothness * (delta[:, 1:] - delta[:, :-1]) / scale).pow(2).sum()
+        return (slide + floor + near) / f.shape[0]
+
+    def closure():
+        opt.zero_grad()
+        e = energy()
+        e.backward()
+        return e
+
+    opt.step(closure)
+    out = moved().detach()
+    return out.to(features.dtype) if is_torch else out.numpy()
