@@ -716,6 +716,8 @@ def gallery_samples(p: Protocol, clip: int = 0, seed: int = 0, checkpoints: Path
     return out
 
 
+SHORT = {"cRBM (CD-15)": "cRBM", "GMM-RNN + refiner (GAN2 + contacts)": "GMM+GAN2", "GMM-RNN, online control":
+         "GMM online", "HVRNN (Proposed)": "HVRNN", "QuaterNet-style GRU": "QuaterNet"}  # the plots' labels
 LOG_SCALE = ("foot_skate", "jitter", "fid", "bone_length", "penetration", "apd", "fps", "params", "train_seconds")
 
 
@@ -727,56 +729,57 @@ def plot_panels(results: dict, measures=None, cols: int = 4, width: float = 16.0
     measures = list(measures or MEASURES)
     names = list(results["rows"])
     rows_n = -(-len(measures) // cols)
-    fig, axes = plt.subplots(rows_n, cols, figsize=(width, 3.6 * rows_n), squeeze=False)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(width, 3.9 * rows_n), squeeze=False)
     colours = plt.cm.tab20(np.linspace(0, 1, len(names)))
     for ax, key in zip(axes.flat, measures, strict=False):
         label, unit, better = MEASURES[key]
         for i, name in enumerate(names):
             row = results["rows"][name]
-            if key in row["mean"]:
-                m = row["mean"][key]
-                ax.bar(i, m if key not in LOG_SCALE else max(m, 1e-6), yerr=row["sd"].get(key, 0.0),
-                       color=colours[i], capsize=3)
-            else:
-                ax.text(i, 0.02, "n/a", rotation=90, ha="center", va="bottom", fontsize=8,
-                        transform=ax.get_xaxis_transform(), color="0.4")
+            m = row["mean"].get(key)
+            if m is not None and not (key in LOG_SCALE and m <= 0):
+                ax.bar(i, m, yerr=row["sd"].get(key, 0.0), color=colours[i], capsize=3)
+            else:  # a blank, or a 0 that a log axis cannot draw
+                ax.text(i, 0.03, "n/a" if m is None else "0", ha="center", va="bottom", fontsize=9,
+                        transform=ax.get_xaxis_transform(), color="0.3")
         mocap = results["rows"]["Mocap"]["mean"].get(key)
-        if mocap is not None:
-            ax.axhline(max(mocap, 1e-6) if key in LOG_SCALE else mocap, color="k", ls="--", lw=1)
+        if mocap is not None and not (key in LOG_SCALE and mocap <= 0):
+            ax.axhline(mocap, color="k", ls="--", lw=1)
         if key in LOG_SCALE:
             ax.set_yscale("log")
         arrow = {"low": "lower is better", "high": "higher is better", "ref": "closest to mocap (dashed)"}[better]
         ax.set_title(f"{label}" + (f" ({unit})" if unit else "") + f"\n{arrow}", fontsize=10)
-        ax.set_xticks(range(len(names)), names, rotation=70, ha="right", fontsize=8)
+        ax.set_xticks(range(len(names)), [SHORT.get(n, n) for n in names], rotation=60, ha="right", fontsize=9)
     for ax in list(axes.flat)[len(measures):]:
         ax.axis("off")
     fig.tight_layout()
     return fig
 
 
-def plot_quality_speed(results: dict, quality: str = "fid", size=(9.0, 6.0)):
-    """Quality (default FID, log) against generation speed (30-fps frames per second on one core, log), one
-    point per model with the seeds' sd as error bars; the real-time rate (30 frames/s) as a dotted line."""
+def plot_quality_speed(results: dict, qualities=("fid", "foot_skate"), size=(16.0, 6.0)):
+    """Each quality (log) against generation speed (30-fps frames per second on one core, log), one panel each:
+    a point per model with the seeds' sd as error bars, the Mocap row dashed, real time (30 frames/s) dotted."""
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=size)
-    for name, row in results["rows"].items():
-        m = row["mean"]
-        if quality in m and "fps" in m:
-            ax.errorbar(m["fps"], m[quality], xerr=row["sd"].get("fps"), yerr=row["sd"].get(quality), fmt="o",
-                        capsize=3)
-            ax.annotate(name, (m["fps"], m[quality]), textcoords="offset points", xytext=(6, 4), fontsize=9)
-    mocap = results["rows"]["Mocap"]["mean"].get(quality)
-    if mocap is not None:
-        ax.axhline(mocap, color="k", ls="--", lw=1, label=f"Mocap (half vs half): {mocap:.0f}")
-    ax.axvline(FPS, color="0.5", ls=":", lw=1, label="real time (30 frames/s)")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    label, unit, _ = MEASURES[quality]
-    ax.set_xlabel("generation speed, 30-fps frames per second on one core")
-    ax.set_ylabel(label + (f" ({unit})" if unit else ""))
-    ax.legend(loc="upper right", fontsize=9)
-    ax.set_title(f"{label} against speed: lower left is better")
+    fig, axes = plt.subplots(1, len(qualities), figsize=size, squeeze=False)
+    for ax, quality in zip(axes[0], qualities, strict=True):
+        for name, row in results["rows"].items():
+            m = row["mean"]
+            if quality in m and "fps" in m:
+                ax.errorbar(m["fps"], m[quality], xerr=row["sd"].get("fps"), yerr=row["sd"].get(quality), fmt="o",
+                            capsize=3)
+                ax.annotate(SHORT.get(name, name), (m["fps"], m[quality]),
+                            textcoords="offset points", xytext=(6, 4), fontsize=9)
+        mocap = results["rows"]["Mocap"]["mean"].get(quality)
+        if mocap:
+            ax.axhline(mocap, color="k", ls="--", lw=1, label=f"Mocap (half vs half): {mocap:.3g}")
+        ax.axvline(FPS, color="0.5", ls=":", lw=1, label="real time (30 frames/s)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        label, unit, _ = MEASURES[quality]
+        ax.set_xlabel("generation speed, 30-fps frames per second on one core")
+        ax.set_ylabel(label + (f" ({unit})" if unit else ""))
+        ax.legend(loc="lower left", fontsize=9)
+        ax.set_title(f"{label} against speed: lower right is better")
     fig.tight_layout()
     return fig
 

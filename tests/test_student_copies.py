@@ -24,7 +24,7 @@ import student_copies as S  # noqa: E402
 
 # lessons whose exercises are autograded; 03 gets its own later (tools/student_copies.py skips it)
 LESSONS = ["00_skeletons_and_rotations", "00b_synthetic_data", "01_vae_basics", "02_vae_lstm",
-           "05_hierarchical_vrnn", "06_moglow"]
+           "05_hierarchical_vrnn", "06_moglow", "07_benchmark"]
 MIN_EXERCISES = 4
 
 
