@@ -9,6 +9,7 @@ import pytest
 
 from course_lib.datasets import generate_locomotion_set
 from course_lib.evaluation import contact_agreement, foot_skate, freeze_floor, joint_speed, lower_toe
+from course_lib.evaluation.contacts import skate_sources
 from course_lib.motion import Motion
 from course_lib.skeleton import Skeleton
 
@@ -93,3 +94,32 @@ def test_lesson_modules_keep_the_old_names():
     from course_lib.experiments import gmm_rnn
 
     assert gmm_rnn.freeze_floor is evaluation.freeze_floor and gmm_rnn.joint_speed is evaluation.joint_speed
+
+
+def test_skate_sources_split_flagged_from_unflagged_low_toes():
+    """Left toe flagged and sliding at 0.3 m/s, right toe 2 cm up (under the 5-cm line), bit off, at 1.2 m/s:
+    the flagged speed is 0.3, the unflagged 1.2, and 1.2 / 1.5 of the skate comes from the unflagged toe."""
+    T = 10
+    pos = np.zeros((1, T, SKEL.num_joints, 3))
+    pos[..., 1] = 0.5  # every other joint well above the floor
+    lt, rt = SKEL.index("LeftToeBase"), SKEL.index("RightToeBase")
+    pos[0, :, lt] = np.stack([np.arange(T) * 0.3 / FPS, np.full(T, 0.02), np.zeros(T)], -1)
+    pos[0, :, rt] = np.stack([np.zeros(T), np.full(T, 0.04), np.arange(T) * 1.2 / FPS], -1)
+    bits = np.zeros((1, T, 2), bool)
+    bits[..., 0] = True
+    out = skate_sources(pos, bits, SKEL, FPS)
+    assert out["flagged_speed"] == pytest.approx(0.3) and out["unflagged_low_speed"] == pytest.approx(1.2)
+    assert out["flagged_fraction"] == pytest.approx(0.5) and out["unflagged_low_fraction"] == pytest.approx(0.5)
+    assert out["skate_from_unflagged"] == pytest.approx(1.2 / 1.5)
+    assert foot_skate(pos, fps=FPS) == pytest.approx(0.75)  # the plain measure: the mean of both
+    bits[..., 1] = True  # now the right toe is flagged too (2 cm above the left: within 5 cm)
+    assert skate_sources(pos, bits, SKEL, FPS)["unflagged_low_fraction"] == 0.0
+    with pytest.raises(ValueError, match="bits must be"):
+        skate_sources(pos, bits[:, :-1], SKEL, FPS)
+
+
+def test_skate_sources_of_mocap_labels(walks):
+    """Mocap with its own contact labels: flagged toes hardly move, and little skate comes from unflagged toes."""
+    pos = np.stack([m.positions() for m in walks])
+    out = skate_sources(pos, np.stack([m.contacts() for m in walks]), SKEL, FPS)
+    assert out["flagged_speed"] < 0.02 and out["flagged_fraction"] > 0.3
