@@ -684,13 +684,11 @@ def cell(row: dict, key: str, digits: int = 3) -> str:
     return mean_sd(m, sd, digits)
 
 
-def markdown(results: dict, measures=None) -> str:
-    """The results table as Markdown: rows x measures; each blank is numbered and its reason listed below."""
-    measures = list(measures or MEASURES)
+def _table(results: dict, measures) -> tuple[list[str], list[list[str]], list[str], list[str]]:
+    """-> (header, rows of cells, the blanks' reasons in the order of their numbers, footer lines)."""
     head = ["model"] + [f"{MEASURES[k][0]} ({MEASURES[k][1]})" if MEASURES[k][1] else MEASURES[k][0]
                         for k in measures]
-    lines = ["| " + " | ".join(head) + " |", "|---" + "|---:" * len(measures) + "|"]
-    reasons: list[str] = []
+    rows, reasons = [], []
     for name, row in results["rows"].items():
         cells = []
         for k in measures:
@@ -702,14 +700,37 @@ def markdown(results: dict, measures=None) -> str:
                 reasons.append(why) if why not in reasons else None
                 text = f"— [{reasons.index(why) + 1}]"
             cells.append(text)
-        lines.append("| " + " | ".join([name] + cells) + " |")
+        rows.append([name] + cells)
     spec = results["spec"]
-    lines += ["", f"Mean ± sd over generation seeds {spec['seeds']}; {results['clips']} held-out clips "
-              f"(halves of {results['clips'] // 2}), {results['measured_frames']} frames at {results['fps']:g} fps "
-              f"each; {results['seconds']:.0f} s in all.", ""]
-    lines += [f"[{i + 1}] {r}" for i, r in enumerate(reasons)]
-    notes = [f"NLL of {n}: {r['nll_note']}" for n, r in results["rows"].items() if "nll_note" in r]
-    return "\n".join(lines + [""] + notes) + "\n"
+    footer = [f"Mean ± sd over generation seeds {spec['seeds']}; {results['clips']} held-out clips (halves of "
+              f"{results['clips'] // 2}), {results['measured_frames']} frames at {results['fps']:g} fps each; "
+              f"{results['seconds']:.0f} s in all."]
+    footer += [f"NLL of {n}: {NLL_NOTES.get(n, r['nll_note'])}" for n, r in results["rows"].items() if "nll_note" in r]
+    return head, rows, reasons, footer
+
+
+def markdown(results: dict, measures=None) -> str:
+    """The results table as Markdown: rows x measures; each blank is numbered and its reason listed below."""
+    head, rows, reasons, footer = _table(results, list(measures or MEASURES))
+    lines = ["| " + " | ".join(head) + " |", "|---" + "|---:" * (len(head) - 1) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    lines += ["", footer[0], ""] + [f"[{i + 1}] {r}" for i, r in enumerate(reasons)] + [""] + footer[1:]
+    return "\n".join(lines) + "\n"
+
+
+def html(results: dict, measures=None) -> str:
+    """The same table as HTML (for notebooks and the site: a Markdown output is not parsed as a table there)."""
+    import html as h
+
+    head, rows, reasons, footer = _table(results, list(measures or MEASURES))
+    th = "".join(f"<th>{h.escape(c)}</th>" for c in head)
+    body = "".join("<tr>" + "".join(f"<td>{h.escape(c)}</td>" if i == 0 else
+                                    f'<td style="text-align:right">{h.escape(c)}</td>' for i, c in enumerate(r))
+                   + "</tr>" for r in rows)
+    notes = "".join(f"<li>[{i + 1}] {h.escape(r)}</li>" for i, r in enumerate(reasons))
+    extra = "".join(f"<p>{h.escape(f)}</p>" for f in footer)
+    return (f"<table><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>"
+            f'<ul style="list-style:none;padding-left:0">{notes}</ul>{extra}')
 
 
 def gallery_samples(p: Protocol, clip: int = 0, seed: int = 0, checkpoints: Path = CHECKPOINTS, names=None) -> dict:

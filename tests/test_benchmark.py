@@ -124,10 +124,12 @@ def test_small_run_mocap_at_the_floor(small):
     assert rows["MoGlow"]["mean"]["apd"] > 0.01
 
 
-def test_markdown_lists_every_row_and_numbers_each_reason(small):
-    md = B.markdown(small)
-    assert all(f"| {name} |" in md for name in small["rows"])
+def test_markdown_and_html_list_every_row_and_number_each_reason(small):
+    md, page = B.markdown(small), B.html(small)
+    assert all(f"| {name} |" in md and f"<td>{name}</td>" in page for name in small["rows"])
     assert "[1] one recording per start" in md and "— [" in md
+    assert page.count("<tr>") == len(small["rows"]) + 1 and "[1] one recording per start" in page
+    assert "≤ " in md  # the VAE-LSTM's negative ELBO bounds its NLL from above
 
 
 # ----------------------------------------------------------------------------- the recorded results
