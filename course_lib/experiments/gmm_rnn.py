@@ -77,7 +77,7 @@ class Lesson03Spec:
     d_loss_low: float = 0.1
     d_loss_high: float = 0.693
     schedule_smooth: int = 5
-    refiner_pose_lam: float = 0.0  # R's pose self-regularisation (SimGAN's, not in eq. 13; RefinerConfig.pose_lam)
+    refiner_pose_lam: float = 10.0  # R's pose self-regularisation (SimGAN, not eq. 13): gmm_rnn_refiner_selfreg.py
     discriminator_joints: str = "end_effectors"  # D sees eq. 12's end effectors, or "all" joints (RefinerConfig)
     discriminator_contacts: bool = True  # GAN2's D also sees the contact bits (sec. 4.3 "augment ... input and output")
     pool_sequences: int = 320  # RNN motions generated once for refiner training
