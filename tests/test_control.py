@@ -430,3 +430,15 @@ def test_named_curves_and_their_durations():
     assert X.seconds_for(X.curve("line"), "walk") == pytest.approx(6.0 / X.PACE["walk"])
     with pytest.raises(ValueError, match="unknown curve"):
         X.curve("spiral")
+
+
+def test_a_window_whose_control_energy_stays_high_is_searched_again(prior, walk):
+    from course_lib.control import DesignConfig, design_motion
+
+    curve = np.array([[0.0, 0.0], [0.0, 2.4]])
+    always = design_motion(curve, 2.0, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(retry_control=-1.0))
+    never = design_motion(curve, 2.0, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(retry_control=None))
+    wa, wn = always.meta["design"]["windows"], never.meta["design"]["windows"]
+    assert all(w.get("retried") for w in wa) and not any(w.get("retried") for w in wn)
+    # the first window starts from the same state and draws: the retried one keeps the better of two searches
+    assert wa[0]["terms"]["total"] <= wn[0]["terms"]["total"] + 1e-6

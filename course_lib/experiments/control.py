@@ -84,10 +84,11 @@ def _config(method: str, scale: float = 1.0):
 
     if method == "ours":
         return DesignConfig()
-    if method == "lbfgs":  # L-BFGS from one RNN sample, no PSO (baseline d)
-        return DesignConfig(candidates=1, use_pso=False, lbfgs=LbfgsConfig(iterations=max(1, round(40 * scale))))
+    if method == "lbfgs":  # L-BFGS from one RNN sample, no PSO (baseline d); no retries (they add samples)
+        return DesignConfig(candidates=1, use_pso=False, lbfgs=LbfgsConfig(iterations=max(1, round(40 * scale))),
+                            retry_control=None)
     if method == "best_of_n":  # sampling alone, no gradients (baseline c)
-        return DesignConfig(candidates=max(1, round(64 * scale)), use_pso=False, use_lbfgs=False)
+        return DesignConfig(candidates=max(1, round(64 * scale)), use_pso=False, use_lbfgs=False, retry_control=None)
     raise ValueError(method)
 
 
