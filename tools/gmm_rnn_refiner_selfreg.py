@@ -1,5 +1,5 @@
 """Lesson 03 side experiment: R's pose self-regularisation (SimGAN's ||R(x) - x||^2 on the pose columns, weight
-pose_lam) and the contact-bit gradient clipped to [0, 1], on the shipped GMM-RNN, refiner seed 0.
+pose_lam) and the contact-bit gradient clipped to [0, 1], on the shipped GMM-RNN, refiner seed 0 (or --seeds).
 
     python tools/gmm_rnn_refiner_selfreg.py --pose-lam 0 1 10 --out tools/gmm_rnn_refiner_selfreg_results.json
 
@@ -54,6 +54,7 @@ def main() -> None:
     parser.add_argument("--pose-lam", type=float, nargs="+", default=[0.0, 1.0, 10.0])
     parser.add_argument("--d-joints", nargs="+", default=["end_effectors"], choices=["end_effectors", "all"],
                         help="what D sees (RefinerConfig.discriminator_joints); every pose_lam runs with each")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0], help="refiner seeds (a run per seed)")
     parser.add_argument("--out", required=True)
     parser.add_argument("--save-dir", type=Path, help="also save each run's refiners here (state dicts)")
     args = parser.parse_args()
@@ -65,7 +66,8 @@ def main() -> None:
     pool = X.rnn_pool(model, ds, spec, 0)
     cont = X.continuations(model, {"GAN1 shipped": shipped["GAN1"]}, test, stats, spec, 0)
     out = {"command": "python tools/gmm_rnn_refiner_selfreg.py --pose-lam " + " ".join(map(str, args.pose_lam))
-           + " --d-joints " + " ".join(args.d_joints) + f" --out {args.out}",
+           + " --d-joints " + " ".join(args.d_joints) + " --seeds " + " ".join(map(str, args.seeds))
+           + f" --out {args.out}",
            "RNN": score(cont["RNN"], stats, test, spec.fps),
            "RNN + contacts": score(X.with_contacts(cont["RNN"], stats, test, spec.contact_smooth), stats, test,
                                    spec.fps),
@@ -74,22 +76,23 @@ def main() -> None:
            "runs": {}}
     if Path(args.out).exists():  # runs are merged into an earlier file
         out["runs"] = json.loads(Path(args.out).read_text()).get("runs", {})
-    for lam, joints in [(v, j) for v in args.pose_lam for j in args.d_joints]:
+    for lam, joints, seed in [(v, j, k) for v in args.pose_lam for j in args.d_joints for k in args.seeds]:
         s = dataclasses.replace(spec, refiner_pose_lam=lam, discriminator_joints=joints)
         t0, refiners, run = time.perf_counter(), {}, {}
         for name, contacts in (("GAN1", False), ("GAN2", True)):
-            r, _, hist = X.train_gan(pool, ds, s, contacts=contacts, seed=0, progress=False)
+            r, _, hist = X.train_gan(pool, ds, s, contacts=contacts, seed=seed, progress=False)
             refiners[name], run[f"{name} training"] = r, X._gan_summary(hist)
             if args.save_dir:
                 args.save_dir.mkdir(parents=True, exist_ok=True)
-                torch.save(r.state_dict(), args.save_dir / f"{name}_pose{lam}_{joints}.pt")
+                torch.save(r.state_dict(), args.save_dir / f"{name}_pose{lam}_{joints}_seed{seed}.pt")
         run["quality"] = X.quality_table(model, refiners, test, stats, s, 0)
+        run["contact_handling"] = s.contact_method
         cont = X.continuations(model, {"GAN1": refiners["GAN1"]}, test, stats, s, 0)
         run["GAN1 clamp test"] = clamp_test(cont["RNN"], cont["GAN1"], stats, test, spec.fps)
         run["seconds"] = time.perf_counter() - t0
-        out["runs"][f"pose_lam {lam}, D sees {joints}"] = run
+        out["runs"][f"pose_lam {lam}, D sees {joints}" + (f", seed {seed}" if args.seeds != [0] else "")] = run
         brief = {k: {m: round(v[m], 3) for m in ("fid", "foot_skate", "jitter")} for k, v in run["quality"].items()}
-        print(lam, joints, brief, flush=True)
+        print(lam, joints, seed, brief, flush=True)
         with open(args.out, "w") as f:
             json.dump(X.rounded(out), f, indent=1, default=float)
             f.write("\n")
