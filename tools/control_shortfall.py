@@ -4,7 +4,8 @@ RNN walk too slowly for the requested duration?  -> tools/control_shortfall.json
     OMP_NUM_THREADS=1 TQDM_DISABLE=1 python tools/control_shortfall.py          # ~7 min on one core
     python tools/control_shortfall.py --curves line --out /tmp/x.json
 
-For each curve of tools/control_experiment.py (walking, seed 0) and each progress rule of ``DesignConfig``:
+For each curve (`course_lib.experiments.control.curve`, at the durations of the first recorded run, SECONDS;
+walking, seed 0) and each progress rule of ``DesignConfig``:
 "net" (the previous rule: each window's net root displacement per second, in any direction, asked to be the
 curve's length / seconds) and "arc" (the arc length gained along the curve by the window's last kept frame,
 paced so that the end is due when the time is up), the arc length reached every 17 frames against the schedule,
@@ -23,14 +24,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).parent))
-import control_experiment as X  # noqa: E402
-
-from course_lib.control import DesignConfig, design_motion  # noqa: E402
-from course_lib.control.design import default_prior, prepare_start  # noqa: E402
-from course_lib.control.energy import arc_lengths, arc_position  # noqa: E402
+from course_lib.control import DesignConfig, design_motion
+from course_lib.control.design import default_prior, prepare_start
+from course_lib.control.energy import arc_lengths, arc_position
+from course_lib.experiments import control as C
 
 OUT = Path(__file__).with_name("control_shortfall.json")
+SECONDS = {"line": 5.0, "circle_r2": 10.5, "s_curve": 5.5}  # the durations tools/control_results.json was run at
 
 
 def free_walk_speeds(n: int = 8, seconds: float = 5.0) -> list[float]:
@@ -73,13 +73,13 @@ def main(argv=None):
            "rnn_free_walk_speed_m_s": {"median": float(np.median(speeds)), "each": speeds}, "rows": {}}
     print("RNN free walk speed m/s", np.round(speeds, 2), flush=True)
     for name in args.curves.split(","):
-        curve, seconds = X.curves()[name]
+        curve, seconds = C.curve(name), SECONDS[name]
         asked = float(arc_lengths(curve)[-1]) / seconds
         for rule in args.rules.split(","):
             t0 = time.perf_counter()
             m = design_motion(curve, seconds, "walk", seed=0, config=DesignConfig(progress=rule))
-            row = {**X.measure(m, curve), "asked_speed_m_s": asked, "seconds": round(time.perf_counter() - t0, 1),
-                   **schedule(m, curve)}
+            row = {**C.measure_design(m, curve), "asked_speed_m_s": asked,
+                   "seconds": round(time.perf_counter() - t0, 1), **schedule(m, curve)}
             res["rows"][f"{name}/{rule}"] = row
             print(name, rule, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
             args.out.write_text(json.dumps(res, indent=1) + "\n")
