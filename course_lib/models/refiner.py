@@ -49,7 +49,7 @@ Differs from the paper:
   every clip on its own skeleton (the subjects' scales are 0.97-1.09).
 - ``pose_lam`` > 0 (not in eq. 13): SimGAN's self-regularisation on the pose as well, pose_lam times the mean
   squared change (R(x) - x)^2 of every refined column but the contact bits, in sd units.  Eq. 13 keeps only the
-  root near x; with D seeing five end effectors, R then changed the spine, shoulders and arms by 1.4-2.5 sd,
+  root near x; with D seeing five end effectors, R then changed the spine, shoulders and arms by 1.65 sd rms,
   which alone raised the FID from 254 to 2060 (tools/gmm_rnn_refiner_selfreg.py, the clamp test).
 - ``discriminator_joints="all"`` (not in eq. 12): D sees the floor-frame positions and velocities of every joint,
   not only the end effectors (R's input is unchanged).
