@@ -10,9 +10,10 @@ The rule, applied to each markdown cell of a notebook:
   arguments, not results), LaTeX math (``$...$``, ``$$...$$``: its numbers are an equation's constants),
   link targets and HTML tags, and tokens glued to letters, underscores or dots in front (``H.264``,
   ``07_01``, ``MP4``, ``v1.2``).
-* **References are not values.** A number right after eq./eqs./equation, section/§, figure/fig.,
-  table, lesson, issue, cell, exercise, part, step, appendix, page/p. (and a list or range of them: "eqs.
-  4.1.3", "cells 15 and 24"); a year (1990-2029) after "et al.", a name or a comma, or in parentheses.
+* **References are not values.** A number right after eq./eqs./equation, sec./section/§, figure/fig.,
+  table, lesson, issue, cell, exercise, part, appendix, page/p., line, # (and a list or range of them:
+  "eqs. 14-15", "sec. 4.1.3", "cells 15 and 24"); a year (1990-2029) after "et al.", a name or a
+  comma, or in parentheses.
   The lesson header's **Time:** and **Prerequisites:** lines are estimates, not measurements.
 * **The paper's numbers are not ours.** A number in a sentence that cites the paper ("the paper", "paper's",
   "(paper", "paper,", "reported", "reports") and a number in a table column whose header says "paper".
@@ -71,7 +72,7 @@ ALLOWED: dict[str, dict[str, str]] = {
 
 NUMBER = re.compile(r"(?<![\w.])(\d{1,3}(?:[,\u2009\u202f]\d{3})+(?:\.\d+)?|\d*\.\d+|\d+)(?:[eE]([-+]?\d+))?(?![\d_])")
 REF_WORDS = (r"eqs?\.|equations?|secs?\.|sections?|§|figures?|figs?\.|tables?|lessons?|issues?|cells?|"
-             r"exercises?|parts?|steps? of the recipe|appendix|pages?|pp?\.|lines?|#")
+             r"exercises?|parts?|appendix|pages?|pp?\.|lines?|#")
 _REF_NUM = r"\(?\d+(?:\.\d+)*[a-z]?\)?"
 REF = re.compile(rf"(?i)(?:\b|(?<=§)|(?<=#))(?:{REF_WORDS})\s*{_REF_NUM}(?:\s*(?:[-–,]|and|to|&)\s*{_REF_NUM})*")
 # a year in a citation (1990-2029): after "et al.", a capitalised word or a comma, or alone in parentheses
