@@ -190,6 +190,22 @@ def test_streaming_equals_batched_sampling():
     torch.testing.assert_close(model.encode(zero, c)[0], torch.zeros(4, 12, 6), atol=1e-4, rtol=0)
 
 
+@pytest.mark.parametrize("kw", [dict(), dict(conditioner="markov")])
+def test_sample_history_fn_changes_only_what_is_fed_back(kw):
+    """history_fn = 0: frame t conditions on the given poses, then zeros; computed in parallel by hand."""
+    model = tiny(dropout=0.5, **kw)
+    x, c = data(t=10)
+    out = model.sample(c, x[:, :3], generator=torch.Generator().manual_seed(5), history_fn=torch.zeros_like)
+    hist = torch.cat((x[:, :3], torch.zeros(4, 7, 6)), 1)  # what the frames after tau were conditioned on
+    h, _ = model.condition(model.condition_inputs(hist, c))
+    z = torch.randn(4, 7, 6, generator=torch.Generator().manual_seed(5))
+    expected = model.flow_inverse(z, h)
+    torch.testing.assert_close(out[:, 3:], expected, atol=1e-5, rtol=0)  # the returned poses are not zeroed
+    assert expected.abs().min() > 0
+    plain = model.sample(c, x[:, :3], generator=torch.Generator().manual_seed(5))
+    assert (plain[:, 4:] - expected[:, 1:]).abs().max() > 1e-2  # the hook did change the history
+
+
 def test_temperature_scales_the_spread():
     model = tiny()
     x, c = data(n=64, t=8)

@@ -116,3 +116,26 @@ def test_long_samples_counts_an_exploded_sample_and_scores_the_rest(data):
     res = E.long_samples({"replay": Replay()}, data, seed=0, n=3, seconds=8.0)["models"]["replay"]
     assert res["exploded"] == 1 and res["n"] == 3 and not res["finite"]
     assert res["frozen"] == 0 and res["min_speed_var"] > 0  # mocap played back does not freeze
+
+
+def test_long_program_pairs_each_clip_control_with_its_mocap(data):
+    prog = E.long_program(data, seed=0, n=3, seconds=8.0)
+    T = E.TAU + 160
+    assert prog["controls"].shape == (3, T, 3) and prog["poses"].shape == (3, T, data.pose_dim)
+    assert prog["seams"] == [E.TAU, E.TAU + 70, E.TAU + 140]
+    x0, c0 = E.start_frames(data, 3, 0)
+    torch.testing.assert_close(prog["poses"][:, :E.TAU], x0)
+    torch.testing.assert_close(prog["controls"][:, :E.TAU], c0)
+    for i in range(3):
+        seg = prog["controls"][i, E.TAU + 70:E.TAU + 140]  # the second clip of sample i
+        j = int(((data.test["controls"][:, E.TAU:] - seg).abs().amax((1, 2))).argmin())
+        assert (data.test["controls"][j, E.TAU:] - seg).abs().max() == 0
+        assert (data.test["poses"][j, E.TAU:] - prog["poses"][i, E.TAU + 70:E.TAU + 140]).abs().max() == 0
+
+
+def test_exploded_counts_nan_and_values_beyond_blow_up():
+    poses = torch.zeros(4, 5, 2)
+    poses[1, 3, 0] = E.BLOW_UP + 0.1
+    poses[2, 4, 1] = float("nan")
+    poses[3, 2, 1] = -(E.BLOW_UP - 0.1)  # inside
+    assert E.exploded(poses).tolist() == [False, True, True, False]

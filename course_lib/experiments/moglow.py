@@ -209,11 +209,15 @@ def start_frames(data: MoGlowData, n: int, seed: int) -> tuple[torch.Tensor, tor
 
 
 def generate(model, data: MoGlowData, controls: torch.Tensor, seed: int, temperature: float = 1.0,
-             starts: torch.Tensor | None = None) -> torch.Tensor:
-    """controls (N, T, 3) from frame tau on -> standardised poses (N, T, D) from held-out starting poses."""
+             starts: torch.Tensor | None = None, history_fn=None) -> torch.Tensor:
+    """controls (N, T, 3) from frame tau on -> standardised poses (N, T, D) from held-out starting poses;
+    history_fn: `MoGlow.sample`'s hook on the poses fed back (experiments only)."""
     x0, c0 = starts if starts is not None else start_frames(data, len(controls), seed)
     controls = torch.cat((c0, controls[:, TAU:]), 1)
-    return model.sample(controls, x0, temperature, generator=torch.Generator().manual_seed(seed)), controls
+    gen = torch.Generator().manual_seed(seed)
+    if history_fn is None:
+        return model.sample(controls, x0, temperature, generator=gen), controls
+    return model.sample(controls, x0, temperature, generator=gen, history_fn=history_fn), controls
 
 
 STEP_LAG = 5  # frames (0.25 s, shorter than a swing): the lag of the "stepping" feet speed
@@ -335,22 +339,40 @@ def control_consistency(models: dict, data: MoGlowData, seed: int, n: int = 32) 
     return out
 
 
+def long_program(data: MoGlowData, seed: int, n: int = 16, seconds: float = 20.0) -> dict:
+    """The control program of `long_samples`: n sequences of tau held-out starting frames, then `seconds` of
+    held-out clips' controls back to back (their frames after tau, seeded choice) -> {"controls" (n, T, 3),
+    "poses" (n, T, D) the mocap that goes with them, "seams": the frames where a new clip starts}."""
+    k = int(np.ceil(seconds * FPS / (WINDOW - TAU)))
+    pick = np.random.default_rng(seed).integers(0, len(data.test["controls"]), size=(n, k))
+    x0, c0 = start_frames(data, n, seed)
+    T = TAU + int(seconds * FPS)
+    out = {"seams": list(range(TAU, T, WINDOW - TAU))}
+    for key, start in (("controls", c0), ("poses", x0)):
+        parts = [start] + [data.test[key][pick[:, j], TAU:] for j in range(k)]
+        out[key] = torch.cat(parts, 1)[:, :T]
+    return out
+
+
+def exploded(poses: torch.Tensor) -> torch.Tensor:
+    """poses (N, T, D) standardised -> (N,) bool: any value beyond BLOW_UP sd, or NaN."""
+    return ~(torch.nan_to_num(poses, nan=np.inf).abs() < BLOW_UP).all(-1).all(-1)
+
+
 def long_samples(models: dict, data: MoGlowData, seed: int, n: int = 16, seconds: float = 20.0) -> dict:
-    """20-s samples under the held-out clips' controls (5 clips back to back): joint-speed variance of the
-    last 5 s against lesson 03's freeze floor (a tenth of the least-varying mocap clip's variance); a sample
-    with any standardised pose value beyond BLOW_UP (or NaN) counts as exploded and is left out of the rest."""
+    """20-s samples under the held-out clips' controls (5 clips back to back, `long_program`): joint-speed
+    variance of the last 5 s against lesson 03's freeze floor (a tenth of the least-varying mocap clip's
+    variance); a sample with any standardised pose value beyond BLOW_UP (or NaN) counts as exploded and is
+    left out of the rest."""
     from course_lib.experiments.gmm_rnn import freeze_floor, joint_speed
 
     floor = freeze_floor(data.test_clips)
-    k = int(np.ceil(seconds * FPS / (WINDOW - TAU)))
-    rng = np.random.default_rng(seed)
-    pick = rng.integers(0, len(data.test["controls"]), size=(n, k))
-    ctl = torch.cat([data.test["controls"][pick[:, j], TAU:] for j in range(k)], 1)[:, : int(seconds * FPS)]
-    ctl = torch.cat((torch.zeros(n, TAU, 3), ctl), 1)
+    prog = long_program(data, seed, n, seconds)
+    ctl, starts = prog["controls"], (prog["poses"][:, :TAU], prog["controls"][:, :TAU])
     out = {"freeze_floor": floor, "seconds": seconds, "models": {}}
     for name, model in models.items():
-        poses, c = generate(model, data, ctl, seed)
-        sane = (torch.nan_to_num(poses, nan=np.inf).abs() < BLOW_UP).all(-1).all(-1)  # (n,)
+        poses, c = generate(model, data, ctl, seed, starts=starts)
+        sane = ~exploded(poses)  # (n,)
         row = {"n": n, "exploded": int((~sane).sum()), "finite": bool(torch.isfinite(poses).all())}
         if sane.any():
             pos = data.positions(poses[sane], c[sane])

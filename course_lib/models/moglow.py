@@ -356,45 +356,52 @@ class MoGlow(nn.Module):
     def decode(self, z: torch.Tensor, initial_poses: torch.Tensor, controls: torch.Tensor) -> torch.Tensor:
         """z (N, T - tau, D), initial_poses (N, tau, D), controls (N, T, C) -> poses (N, T, D), the exact
         inverse of `encode`: frame by frame, each new pose feeding the next frame's history."""
+        return self._decode(z, initial_poses, controls)
+
+    def _decode(self, z, initial_poses, controls, history_fn=None) -> torch.Tensor:
         c = self.config
         N, Tz = z.shape[0], z.shape[1]
         self._check(initial_poses, controls[:, : c.tau], c.tau)
         if z.ndim != 3 or z.shape[-1] != c.pose_dim or controls.shape[1] != c.tau + Tz or controls.shape[0] != N:
             raise ValueError(f"MoGlow.decode: z (N, T - tau, {c.pose_dim}) and controls (N, T, {c.control_dim}) "
                              f"must agree, got {tuple(z.shape)} and {tuple(controls.shape)}")
-        stream = self.stream(initial_poses, controls[:, : c.tau])
+        stream = self.stream(initial_poses, controls[:, : c.tau], history_fn)
         frames = [stream.step(controls[:, c.tau + t], z=z[:, t]) for t in range(Tz)]
         return torch.cat((initial_poses, torch.stack(frames, 1)), 1)
 
     @torch.no_grad()
     def sample(self, controls: torch.Tensor, initial_poses: torch.Tensor, temperature: float = 1.0,
-               generator: torch.Generator | None = None) -> torch.Tensor:
+               generator: torch.Generator | None = None, history_fn=None) -> torch.Tensor:
         """controls (N, T, C) (the first tau those of initial_poses (N, tau, D)) -> poses (N, T, D), with
-        z_t ~ N(0, temperature^2 I)."""
+        z_t ~ N(0, temperature^2 I).  history_fn: see `MoGlowStream` (an experiment's hook, None in use)."""
         if temperature < 0:
             raise ValueError(f"MoGlow.sample: temperature must be >= 0, got {temperature}")
         c = self.config
         N, T = controls.shape[0], controls.shape[1] - c.tau
         z = temperature * torch.randn(N, max(T, 0), c.pose_dim, generator=generator, dtype=initial_poses.dtype)
-        return self.decode(z, initial_poses, controls)
+        return self._decode(z, initial_poses, controls, history_fn)
 
-    def stream(self, initial_poses: torch.Tensor, initial_controls: torch.Tensor) -> MoGlowStream:
+    def stream(self, initial_poses: torch.Tensor, initial_controls: torch.Tensor,
+               history_fn=None) -> MoGlowStream:
         """A generator that makes one frame per `step(control)` call (real-time control, sec. 4.2)."""
-        return MoGlowStream(self, initial_poses, initial_controls)
+        return MoGlowStream(self, initial_poses, initial_controls, history_fn)
 
 
 class MoGlowStream:
     """Streaming generation: holds the last tau poses and controls and the LSTM state.
 
-    initial_poses (N, tau, D), initial_controls (N, tau, C); ``step(control (N, C)) -> pose (N, D)``."""
+    initial_poses (N, tau, D), initial_controls (N, tau, C); ``step(control (N, C)) -> pose (N, D)``.
+    history_fn: pose (N, D) -> (N, D), applied to each generated pose before it enters the history
+    (e.g. a clamp to the data's range); the pose returned by `step` is the unaltered one."""
 
-    def __init__(self, model: MoGlow, initial_poses: torch.Tensor, initial_controls: torch.Tensor):
+    def __init__(self, model: MoGlow, initial_poses: torch.Tensor, initial_controls: torch.Tensor,
+                 history_fn=None):
         c = model.config
         model._check(initial_poses, initial_controls, c.tau)
         if initial_poses.shape[1] != c.tau or initial_controls.shape[1] != c.tau:
             raise ValueError(f"MoGlowStream: need exactly tau = {c.tau} initial frames, got "
                              f"{initial_poses.shape[1]} poses and {initial_controls.shape[1]} controls")
-        self.model, self.state = model, None
+        self.model, self.state, self.history_fn = model, None, history_fn
         self.poses, self.controls = initial_poses.clone(), initial_controls.clone()  # (N, tau, D), (N, tau, C)
         self.weight_invs = model.weight_inverses()
 
@@ -413,6 +420,7 @@ class MoGlowStream:
         if z is None:
             z = temperature * torch.randn(N, D, generator=generator, dtype=self.poses.dtype)
         x = self.model.flow_inverse(z[:, None], h, self.weight_invs)[:, 0]  # (N, D)
-        self.poses = torch.cat((self.poses[:, 1:], x[:, None]), 1)
+        kept = x if self.history_fn is None else self.history_fn(x)  # what the next frames condition on
+        self.poses = torch.cat((self.poses[:, 1:], kept[:, None]), 1)
         self.controls = ctrl[:, 1:]
         return x
