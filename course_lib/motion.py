@@ -117,6 +117,17 @@ class Motion:
         root = self.root_positions * np.array([-1.0, 1.0, 1.0])
         return replace(self, rotations=rot, root_positions=root, meta=dict(self.meta, mirrored=True))
 
+    def retarget(self, skeleton: Skeleton) -> "Motion":
+        """The same joint rotations on ``skeleton`` (same joints and hierarchy), the root path scaled by the
+        ratio of the two leg lengths so that strides and the hip height fit the new legs: what a retargeted
+        mocap set does to put every performer on one body."""
+        if skeleton.names != self.skeleton.names or skeleton.parents != self.skeleton.parents:
+            raise ValueError("retarget: the skeleton must have the same joints and hierarchy "
+                             f"({self.skeleton.num_joints} joints here, {skeleton.num_joints} given)")
+        ratio = skeleton.leg_length() / self.skeleton.leg_length()
+        return replace(self, root_positions=self.root_positions * ratio, skeleton=skeleton,
+                       meta=dict(self.meta, retargeted_from=self.subject, root_scale=ratio))
+
     def __repr__(self) -> str:
         labels = ", ".join(f"{k}={v!r}" for k, v in
                            (("action", self.action), ("style", self.style), ("subject", self.subject)) if v)

@@ -72,10 +72,16 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     parser.add_argument("--only", nargs="*", default=None, help="train only these models (others: checkpoints)")
     parser.add_argument("--checkpoints", type=Path, default=CHECKPOINTS, help="checkpoint folder (with MANIFEST.json)")
+    parser.add_argument("--record", action="store_true",
+                        help="with --eval-only: store the evaluation in the manifest as training does (vae_lstm)")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
     train_fn, eval_fn = EXPERIMENTS[args.experiment]
     kw = {"seed": args.seed, "checkpoints": args.checkpoints}
+    if args.record:
+        if not args.eval_only:
+            parser.error("--record goes with --eval-only (training records its evaluation anyway)")
+        kw["record"] = True
     result = eval_fn(**kw) if args.eval_only else train_fn(**kw, only=args.only)
     text = json.dumps(result, indent=1)
     print(text)

@@ -126,6 +126,13 @@ class Skeleton:
         ends = {j: v * f[j] for j, v in self.end_sites.items()}
         return Skeleton(self.names, self.parents, self.offsets * f[:, None], ends)
 
+    def leg_length(self) -> float:
+        """Rest-pose height of the root above the lower toe joint (m): how long the legs are."""
+        rest = self.fk(torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=torch.float64).expand(self.num_joints, 4),
+                       torch.zeros(3, dtype=torch.float64))
+        toes = [self.index(n) for n in ("LeftToeBase", "RightToeBase")]
+        return float(-rest[toes, 1].min())
+
     def fk(self, rotations, root_positions) -> torch.Tensor:
         """Positions of this skeleton's joints, see `forward_kinematics`."""
         rot = torch.as_tensor(rotations)

@@ -181,6 +181,19 @@ def test_mirror_twice_is_identity_and_reflects_positions(sk):
     assert mm.meta["mirrored"] and not m.meta
 
 
+def test_leg_length_and_retarget_undo_a_uniform_scaling(sk):
+    assert sk.leg_length() == pytest.approx(0.96 - 0.025, abs=1e-12)  # hips above the toe joints at rest
+    assert sk.scaled(1.1).leg_length() == pytest.approx(1.1 * 0.935, abs=1e-12)
+    m = random_motion(sk)
+    big = Motion(m.rotations, m.root_positions * 1.1, sk.scaled(1.1), m.fps, subject="tall")  # the same motion, 1.1x
+    back = big.retarget(sk)
+    np.testing.assert_allclose(back.positions(), m.positions(), atol=1e-9)
+    assert back.meta["root_scale"] == pytest.approx(1 / 1.1) and back.meta["retargeted_from"] == "tall"
+    np.testing.assert_allclose(big.root_positions, m.root_positions * 1.1)  # the input is untouched
+    with pytest.raises(ValueError, match="same joints"):
+        m.retarget(Skeleton(sk.names[:-1], sk.parents[:-1], sk.offsets[:-1]))
+
+
 def test_resample_half_rate_keeps_every_second_frame(sk):
     m = random_motion(sk, T=121, fps=120)
     h = m.resample(60)

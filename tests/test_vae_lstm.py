@@ -248,6 +248,42 @@ def test_latent_diagnostics_known_answers():
     assert latent_diagnostics(m, ds)["zero_z1_algorithm1_m"] == 0.0  # mu_1 = 0 already: zeroing changes nothing
 
 
+def test_body_size_and_matched_control_pairs_known_answers():
+    """body_size is the skeleton's bone lengths summed; a test set that is the training set has matched-control
+    pairs 0 cm apart, and the same clips on a body 1.1x larger are apart by 10% of the joints' mean distance from
+    the root's floor point (the one-body data of lesson 02 removes exactly this)."""
+    import numpy as np
+
+    from course_lib.datasets import WindowDataset
+    from course_lib.experiments.vae_lstm import (
+        DataSpec,
+        _scaled_pose_error,
+        body_size,
+        generate_clips,
+        matched_control_pairs,
+    )
+    from course_lib.motion import Motion
+
+    clips = generate_clips(DataSpec(n_clips=2), progress=False)
+    pos = np.stack([m[:240].positions() for m in clips])
+    np.testing.assert_allclose(body_size(pos), [m.skeleton.bone_lengths()[1:].sum() for m in clips], rtol=1e-9)
+    kw = dict(representation="positions_control", length=240, fps=60)
+    ds = WindowDataset(clips, **kw)
+    same = matched_control_pairs(ds, WindowDataset(clips, **kw, stats=ds.stats))
+    assert same["nearest_cm"] < 1e-6 and same["best10_ctrl_rms_sd"] < 1e-6 and same["random_cm"] > 5
+    big = [Motion(m.rotations, m.root_positions * 1.1, m.skeleton.scaled(1.1), m.fps) for m in clips]
+    # the control scales with the body too (velocities 1.1x), so match on the original clips' controls
+    scaled = WindowDataset(big, **kw, stats=ds.stats)
+    for i in range(len(scaled.features)):
+        scaled.features[i][..., -3:] = ds.features[i][..., -3:]
+    pairs = matched_control_pairs(ds, scaled)
+    big_pos = np.stack([m[:240].positions() for m in big])
+    ones, undo = np.ones(2), body_size(pos) / body_size(big_pos)
+    assert _scaled_pose_error(big_pos, pos, ones)[210] > 1e-3 > 1e-12 > _scaled_pose_error(big_pos, pos, undo)[210]
+    root_rel = pos - pos[:, :, :1] * np.array([1.0, 0.0, 1.0])
+    assert pairs["nearest_cm"] == pytest.approx(10 * np.linalg.norm(root_rel, axis=-1).mean(), rel=0.05)
+
+
 def test_must_show_checks_read_the_right_numbers():
     """Issue 15's checks on a crafted results dict: each flips when its number crosses its bound."""
     from course_lib.experiments.vae_lstm import BASELINES, FRAMES, must_show

@@ -35,8 +35,10 @@ def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
                                   config=V.variant_config(name))
         res = V.lesson02_tables({"vae_lstm": model}, test_ds)
         res = {"table1": {**base["table1"], **res["table1"]}, "table2": {**base["table2"], **res["table2"]},
-               "prior_diversity": V.prior_diversity(model, test_ds), "latent": V.latent_diagnostics(model, test_ds),
-               "posterior_pool_diversity": V.prior_diversity(model, test_ds, z1_pool=V.posterior_pool(model, test_ds))}
+               "prior_diversity": V.prior_diversity(model, test_ds, n_controls=10),
+               "latent": V.latent_diagnostics(model, test_ds),
+               "posterior_pool_diversity": V.prior_diversity(model, test_ds, n_controls=10,
+                                                                    z1_pool=V.posterior_pool(model, test_ds))}
         res["latent"].pop("kl_per_dim")
         out["variants"][name] = rounded({
             "overrides": V.VARIANTS[name], "train_seconds": hist.seconds, "steps": hist.num_steps,

@@ -57,6 +57,7 @@ class DataSpec:
     fps: float = 60.0
     length: int = 240  # frames per clip (4 s), Habibie sec. 4.1
     mirror: bool = True  # left-right mirrored training clips (augmentation)
+    one_body: bool = False  # every clip retargeted to the canonical skeleton (`Motion.retarget`): one body
     extra: dict = field(default_factory=dict)
 
 
@@ -97,7 +98,12 @@ def load_clips(spec: DataSpec, path: Path = DATA_FILE, progress: bool = True) ->
 
 
 def datasets(spec: DataSpec, clips: list[Motion]) -> tuple[WindowDataset, WindowDataset]:
-    """-> (train, test) WindowDatasets of positions_control, 240 frames; test uses train's stats."""
+    """-> (train, test) WindowDatasets of positions_control, 240 frames; test uses train's stats.  With
+    ``spec.one_body`` every clip is first put on the canonical skeleton (the subjects' body sizes removed)."""
+    if spec.one_body:
+        from course_lib.skeleton import Skeleton
+
+        clips = [m.retarget(Skeleton.canonical()) for m in clips]
     test = [m for m in clips if m.subject in spec.test_subjects]
     train = [m for m in clips if m.subject not in spec.test_subjects]
     if not test or not train:
@@ -228,7 +234,7 @@ def lesson02_tables(models: dict, test_ds: WindowDataset, seed: int = 0, frames=
     return out
 
 
-def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_samples: int = 5, seed: int = 0,
+def prior_diversity(model, test_ds: WindowDataset, n_controls: int | None = None, n_samples: int = 5, seed: int = 0,
                     z1_pool: torch.Tensor | None = None) -> dict:
     """Prior samples under one control, by Algorithm 1 (z_1 only) and with z_t drawn every step:
     APD (m) of S samples per control (the root on the given control's path, so APD is the body's
@@ -236,10 +242,12 @@ def prior_diversity(model, test_ds: WindowDataset, n_controls: int = 10, n_sampl
     *model's own* control outputs to the ground-truth path (with the given control the path would
     match by construction).  z1_pool: (M, U) z_1 values to draw from instead of N(0, I) (e.g. the
     4-frame posterior means of other clips: is the prior or the decoder short of diversity?); then
-    only the Algorithm-1 entry is computed."""
+    only the Algorithm-1 entry is computed.  n_controls: the first test clips' controls (None: every test clip;
+    tools/vae_lstm_sweep_results.json used the first 10)."""
     from course_lib.evaluation import apd, path_distance
 
     x, starts = test_batch(test_ds)
+    n_controls = len(x) if n_controls is None else n_controls
     x, starts = x[:n_controls], starts[:n_controls]
     out = {"controls": len(x), "samples_per_control": n_samples}
     for key, per_step in (("algorithm1", False), ("per_step_prior", True))[: 1 if z1_pool is not None else 2]:
@@ -296,12 +304,125 @@ def latent_diagnostics(model, test_ds: WindowDataset) -> dict:
                                                           starts, control[:, late])}
 
 
+def body_size(positions: np.ndarray, skeleton=None) -> np.ndarray:
+    """(N, T, 21, 3) joint positions -> (N,) each clip's body size: its bone lengths summed, mean over frames (m)."""
+    from course_lib.skeleton import Skeleton
+
+    parents = list((skeleton or Skeleton.canonical()).parents[1:])
+    return np.linalg.norm(positions[:, :, 1:] - positions[:, :, parents], axis=-1).sum(-1).mean(1)
+
+
+def _scaled_pose_error(pred: np.ndarray, gt: np.ndarray, scale: np.ndarray, frames=FRAMES) -> dict:
+    """Table 2's pose error of ``pred`` with each clip's root-relative pose scaled by ``scale`` (N,) about the
+    floor point under its root."""
+    from course_lib.evaluation.metrics import root_relative
+
+    p, g = root_relative(pred) * scale[:, None, None, None], root_relative(gt)
+    sq = ((p - g) ** 2).sum(-1).mean(axis=(0, 2))
+    return {f: float(sq[f]) for f in frames}
+
+
+def control_summary(ds: WindowDataset) -> np.ndarray:
+    """(N, 5) summary of each clip's raw control: mean speed, its sd, mean |yaw rate|, mean |sideways velocity|
+    and the step frequency (Hz, the strongest 0.8-6 Hz component of the forward velocity)."""
+    rows = []
+    for i in range(len(ds)):
+        c = ds.denormalize(ds[i]["x"].double()).numpy()[:, -3:]
+        fwd, speed = c[:, 0], np.hypot(c[:, 0], c[:, 1])
+        freq = np.fft.rfftfreq(len(fwd), 1.0 / ds.clips[0].fps)
+        band = (freq > 0.8) & (freq < 6.0)
+        step_hz = freq[band][np.argmax(np.abs(np.fft.rfft(fwd - fwd.mean()))[band])]
+        rows.append([speed.mean(), speed.std(), np.abs(c[:, 2]).mean(), np.abs(c[:, 1]).mean(), step_hz])
+    return np.asarray(rows)
+
+
+def matched_control_pairs(train_ds: WindowDataset, test_ds: WindowDataset, half_window: int = 30,
+                          stride: int = 8) -> dict:
+    """The data's own answer to "how different can two motions under one control be?": for 1-s control windows
+    (2 * half_window + 1 frames, every ``stride`` frames) of the test clips, the training window with the nearest
+    control (rms difference in control sd), and how far apart the two real poses at the windows' centres are
+    (mean joint distance, cm; and mean squared joint distance, m^2, Table 2's unit).  Reported for every test
+    window, for the 10% best-matched controls, and for random pairs."""
+    def windows(ds):
+        raw = np.stack([ds.denormalize(ds[i]["x"].double()).numpy() for i in range(len(ds))])
+        centres = range(half_window + 10, raw.shape[1] - half_window - 9, stride)
+        ctrl = np.stack([raw[:, c - half_window:c + half_window + 1, -3:] for c in centres], 1)
+        pose = np.stack([raw[:, c, :-3].reshape(len(raw), -1, 3) for c in centres], 1)
+        return ctrl.reshape(-1, ctrl.shape[2] * 3), pose.reshape(-1, *pose.shape[2:])
+
+    (c_tr, p_tr), (c_te, p_te) = windows(train_ds), windows(test_ds)
+    sd = np.tile(c_tr.reshape(len(c_tr), -1, 3).reshape(-1, 3).std(0), c_tr.shape[1] // 3)
+    a, b = c_te / sd, c_tr / sd
+    d2 = (a ** 2).sum(1)[:, None] + (b ** 2).sum(1)[None] - 2 * a @ b.T
+    nearest = d2.argmin(1)
+    ctrl_rms = np.sqrt(np.maximum(d2[np.arange(len(a)), nearest], 0) / a.shape[1])
+    diff = p_te - p_tr[nearest]
+    dist, sq = np.linalg.norm(diff, axis=-1).mean(-1), (diff ** 2).sum(-1).mean(-1)
+    best = ctrl_rms <= np.quantile(ctrl_rms, 0.1)
+    rand = p_te - p_tr[np.random.default_rng(0).integers(0, len(p_tr), len(p_te))]
+    return {"windows": len(a), "training_windows": len(b), "nearest_cm": float(dist.mean() * 100),
+            "best10_cm": float(dist[best].mean() * 100), "best10_ctrl_rms_sd": float(ctrl_rms[best].max()),
+            "best10_sq_m2": float(sq[best].mean()), "random_cm": float(np.linalg.norm(rand, axis=-1).mean() * 100)}
+
+
+@torch.no_grad()
+def body_size_study(model, train_ds: WindowDataset, test_ds: WindowDataset, seed: int = 0, draws: int = 20) -> dict:
+    """How much of the VAE-LSTM's Table 2 error is the subject's body size?  On the test clips:
+
+    - ``pose_error`` of the 4-frame and prior rows as Table 2 has them and ``size_matched``: each output clip
+      uniformly scaled (about the floor point under its root) to the ground truth's body size (`body_size`);
+    - ``vertical_share``: the 4-frame row's Head and Hips error split into height (y) and floor-plane (x, z)
+      parts at frames 2, 70 and 210 (cm^2);
+    - ``known_answers``: the real clips with another held-out clip's body size, and the 4-frame output with a
+      body drawn from the training clips (a sampler as good as the 4-frame row that cannot know the body);
+    - ``control_tells_body``: R^2 of a least-squares fit of the body size on `control_summary` (fit on the
+      training clips; on them and on the test clips): does the control say how big the body is?"""
+    from course_lib.evaluation.metrics import root_relative
+
+    x, starts = test_batch(test_ds)
+    control = x[..., -3:]
+    gt = to_world(x, test_ds, starts)
+    rows = {"VAE-LSTM": model.predict(x[:, :4], control),
+            "VAE-LSTM (prior sample)": model.generate(control, generator=torch.Generator().manual_seed(seed))}
+    rows = {k: to_world(with_control(v, control), test_ds, starts) for k, v in rows.items()}
+    size_gt, ones = body_size(gt), np.ones(len(x))
+    out = {"clips": len(x), "body_size_m": {"mean": float(size_gt.mean()), "sd": float(size_gt.std())},
+           "pose_error": {k: _scaled_pose_error(v, gt, ones) for k, v in rows.items()},
+           "size_matched": {k: _scaled_pose_error(v, gt, size_gt / body_size(v)) for k, v in rows.items()}}
+    p4, g = root_relative(rows["VAE-LSTM"]), root_relative(gt)
+    split = {}
+    for joint in ("Head", "Hips"):
+        j = test_ds.clips[0].skeleton.index(joint)
+        d2 = (p4[:, :, j] - g[:, :, j]) ** 2  # (N, T, 3)
+        split[joint] = {f: {"y": float(d2[:, f, 1].mean() * 1e4), "xz": float((d2[:, f, 0] + d2[:, f, 2]).mean() * 1e4)}
+                        for f in (2, 70, 210)}
+    out["vertical_share"] = split
+    rng = np.random.default_rng(seed)
+    train_x = torch.stack([train_ds[i]["x"] for i in range(len(train_ds))])
+    train_starts = [root_start(train_ds.clips[c][s:s + train_ds.length]) for c, s in train_ds.index]
+    size_train = body_size(to_world(train_x, train_ds, train_starts))
+    drawn = [_scaled_pose_error(rows["VAE-LSTM"], gt, rng.choice(size_train, len(x)) / body_size(rows["VAE-LSTM"]))
+             for _ in range(draws)]
+    out["known_answers"] = {
+        "real clips, another held-out clip's body": _scaled_pose_error(gt, gt,
+                                                                       size_gt[rng.permutation(len(x))] / size_gt),
+        "4-frame output, a training clip's body drawn": {f: float(np.mean([d[f] for d in drawn])) for f in FRAMES}}
+    A = np.c_[control_summary(train_ds), np.ones(len(train_ds))]
+    w = np.linalg.lstsq(A, size_train, rcond=None)[0]
+    r2 = lambda a, y: float(1 - ((a @ w - y) ** 2).sum() / ((y - y.mean()) ** 2).sum())  # noqa: E731
+    out["control_tells_body"] = {"r2_train": r2(A, size_train),
+                                 "r2_test": r2(np.c_[control_summary(test_ds), np.ones(len(x))], size_gt)}
+    return out
+
+
 def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True,
-                  checkpoints: Path = CHECKPOINTS) -> dict:
-    """Tables 1-2, Figure 4 curves, prior diversity and latent diagnostics from the shipped checkpoints, and
-    the same for the paper's-loss model (``"paper_loss"``, not in the tables) -> JSON-able dict."""
+                  checkpoints: Path = CHECKPOINTS, record: bool = False) -> dict:
+    """Tables 1-2, Figure 4 curves, prior diversity, latent diagnostics, the body-size study and the data's
+    matched-control pairs from the shipped checkpoints, and the same tables, diversity and diagnostics for the
+    paper's-loss model (``"paper_loss"``, not in the tables) -> JSON-able dict (stored in the manifest with
+    ``record``, as training stores it)."""
     spec = spec or DataSpec()
-    _, test_ds = datasets(spec, load_clips(spec, progress=progress))
+    train_ds, test_ds = datasets(spec, load_clips(spec, progress=progress))
     models = {name: load_model(name, checkpoints) for name in lesson02_models()}
     paper = models.pop("vae_lstm_paper")
     t0 = time.perf_counter()
@@ -310,6 +431,8 @@ def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = 
     out["prior_diversity"] = prior_diversity(vae, test_ds, seed=seed)
     out["posterior_pool_diversity"] = prior_diversity(vae, test_ds, seed=seed, z1_pool=posterior_pool(vae, test_ds))
     out["latent"] = latent_diagnostics(vae, test_ds)
+    out["body_size"] = body_size_study(vae, train_ds, test_ds, seed)
+    out["matched_control_pairs"] = matched_control_pairs(train_ds, test_ds)
     paper_tables = lesson02_tables({"vae_lstm_paper": paper}, test_ds, seed)
     out["paper_loss"] = {"table1": paper_tables["table1"], "table2": paper_tables["table2"],
                          "prior_diversity": prior_diversity(paper, test_ds, seed=seed),
@@ -317,7 +440,12 @@ def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = 
                                                                      z1_pool=posterior_pool(paper, test_ds)),
                          "latent": latent_diagnostics(paper, test_ds)}
     out["eval_seconds"] = round(time.perf_counter() - t0, 1)
-    return rounded(out)
+    out = rounded(out)
+    if record:
+        recorded = json.loads((checkpoints / "MANIFEST.json").read_text())["vae_lstm"]["metrics"].get("tables", {})
+        record_results({**{k: recorded[k] for k in ("train_seconds", "total_seconds") if k in recorded}, **out},
+                       checkpoints)
+    return out
 
 
 def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True, only=None,
