@@ -43,10 +43,12 @@ def run(smoke: bool = False, out_path: Path | None = None) -> dict:
     res["posterior_pool_diversity"] = V.prior_diversity(vae, test_ds, z1_pool=V.posterior_pool(vae, test_ds))
     res["latent"] = V.latent_diagnostics(vae, test_ds)
     res["latent"].pop("kl_per_dim")
+    res["matched_control_pairs"] = V.matched_control_pairs(train_ds, test_ds)
     out = rounded({"command": "python tools/vae_lstm_one_body.py --out tools/vae_lstm_one_body_results.json",
                    "data": "DataSpec(one_body=True): the lesson's 400 clips, each retargeted to the canonical skeleton",
                    "train_seconds": seconds, "eval_seconds": time.perf_counter() - t0,
-                   **{k: res[k] for k in ("table1", "table2", "prior_diversity", "posterior_pool_diversity", "latent")},
+                   **{k: res[k] for k in ("table1", "table2", "prior_diversity", "posterior_pool_diversity", "latent",
+                                         "matched_control_pairs")},
                    "must_show": {k: list(v) for k, v in V.must_show(res).items()}})
     if out_path:
         out_path.write_text(json.dumps(out, indent=1) + "\n")
