@@ -27,7 +27,8 @@ html_theme_options = {
     "use_download_button": True,
     "navigation_with_keys": False,
 }
-html_static_path: list[str] = []
+html_static_path = ["_static"]  # course.css: MathJax 2 inside the pydata theme (see the file)
+html_css_files = ["course.css"]
 html_last_updated_fmt = None
 html_copy_source = True  # _sources/: the download button offers each lesson as .ipynb
 
