@@ -28,7 +28,8 @@ def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
     train_ds, test_ds = V.datasets(spec, clips)
     baselines = {name: V.load_model(name) for name in V.lesson02_models() if not name.startswith("vae_lstm")}
     base = V.lesson02_tables(baselines, test_ds)
-    out = {"baselines": rounded({k: base[k] for k in ("table1", "table2")}), "variants": {}}
+    kept = json.loads(out_path.read_text())["variants"] if out_path and out_path.exists() else {}
+    out = {"baselines": rounded({k: base[k] for k in ("table1", "table2")}), "variants": kept}  # --only adds to it
     for name in names:
         steps = 3 if smoke else V.VARIANTS[name].get("steps")
         model, hist = V.train_one("vae_lstm", train_ds, seed=0, steps=steps, progress=False,

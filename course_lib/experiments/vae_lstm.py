@@ -500,7 +500,8 @@ def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
 # annealing / free bits: lesson 01's collapse remedies on top of it; "algorithm1_elbo": eq. (5) plus the
 # ELBO of Algorithm 1's own path (the shipped preset); then that with annealing, with a likelihood std
 # twice as wide (obs_std, which the paper does not give, sets how many nats z_1 may cost), and trained
-# twice as long ("steps": optimiser steps instead of the shipped 1000).
+# twice as long ("steps": optimiser steps instead of the shipped 1000), and with Algorithm 1's ELBO weighted 3x
+# (does the recursion then keep the body's height, section 5c of lesson 02?).
 VARIANTS = {
     "paper": {"generation_weight": 0.0},
     "paper_kl_annealing": {"generation_weight": 0.0, "kl_warmup_steps": 500},
@@ -509,6 +510,7 @@ VARIANTS = {
     "algorithm1_elbo_kl_annealing": {"generation_weight": 1.0, "kl_warmup_steps": 500},
     "algorithm1_elbo_obs_std_0.4": {"generation_weight": 1.0, "obs_std": 0.4},
     "algorithm1_elbo_2000_steps": {"generation_weight": 1.0, "steps": 2000},
+    "algorithm1_elbo_x3_2000_steps": {"generation_weight": 3.0, "steps": 2000},
 }
 
 
