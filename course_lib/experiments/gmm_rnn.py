@@ -5,7 +5,7 @@ stand-in for the paper's user study (Fig. 12).
     python -m course_lib.reproduce gmm_rnn --eval-only  # the evaluation from checkpoints/ only
     python -m course_lib.reproduce gmm_rnn --only gans  # keep the RNN checkpoint, retrain the refiners
 
-Data: lesson 02's synthetic locomotion clips (course_lib.reproduce.DataSpec: 400 clips of 4 s, 10
+Data: lesson 02's synthetic locomotion clips (experiments.vae_lstm.DataSpec: 400 clips of 4 s, 10
 subjects, 3 held out) resampled to 30 fps and encoded as ``state_features`` (eq. 3 + 2 contact bits).
 Models: the GMM-RNN (sec. 4.1), GAN1 (refiner without contact awareness) and GAN2 (contact-aware
 refiner, sec. 4.3), each refiner trained for three seeds.  The RNN reads the clips' state features anchored on
@@ -95,7 +95,7 @@ class Lesson03Spec:
 def lesson03_data(spec: Lesson03Spec, progress: bool = True) -> tuple[list[Motion], list[Motion], WindowDataset]:
     """-> (train clips, held-out clips) at spec.fps and the training WindowDataset (50-frame windows,
     mirrored clips added, normalisation from the training split)."""
-    from course_lib.reproduce import DataSpec, load_clips
+    from course_lib.experiments.vae_lstm import DataSpec, load_clips
 
     data = DataSpec(seed=spec.data_seed)
     clips = [m.resample(spec.fps) for m in load_clips(data, progress=progress)]
