@@ -135,6 +135,20 @@ class Motion:
         return f"Motion({len(self)} frames @ {self.fps:g} fps, {self.skeleton.num_joints} joints{tail})"
 
 
+STANCE_MAX_ABOVE = 0.05  # m: a toe flagged in contact this far above the other toe is in the air
+
+
+def trusted_contacts(bits, toe_heights, max_above: float = STANCE_MAX_ABOVE):
+    """Contact bits (..., 2) of the two toes and the toes' heights (..., 2) -> the bits the pose can support: a toe
+    flagged more than ``max_above`` (m) above the other toe is in the air, so its bit is dropped (mocap's flagged toes
+    are within 4 cm of the other toe in 99 % of frames).  numpy arrays or torch tensors (the type of the inputs)."""
+    if torch.is_tensor(toe_heights):
+        lower = toe_heights.min(-1, keepdim=True).values
+    else:
+        lower = np.min(toe_heights, axis=-1, keepdims=True)
+    return bits & (toe_heights <= lower + max_above)
+
+
 def foot_contacts(positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
     """positions (..., T, J, 3) -> (..., T, 2) bool contacts (left, right).
 

@@ -194,6 +194,18 @@ def test_leg_length_and_retarget_undo_a_uniform_scaling(sk):
         m.retarget(Skeleton(sk.names[:-1], sk.parents[:-1], sk.offsets[:-1]))
 
 
+def test_trusted_contacts_drops_a_bit_whose_toe_is_in_the_air():
+    from course_lib.motion import STANCE_MAX_ABOVE, trusted_contacts
+
+    bits = np.array([[True, True], [True, False], [True, True], [False, True]])
+    heights = np.array([[0.02, 0.02 + STANCE_MAX_ABOVE], [0.30, 0.02], [0.02, 0.08], [0.02, 0.2]])
+    want = np.array([[True, True], [False, False], [True, False], [False, False]])  # 5 cm up: kept; 28, 6, 18: not
+    np.testing.assert_array_equal(trusted_contacts(bits, heights), want)
+    got = trusted_contacts(torch.from_numpy(bits), torch.from_numpy(heights))
+    assert torch.is_tensor(got) and (got.numpy() == want).all()
+    assert trusted_contacts(bits, heights, max_above=1.0).tolist() == bits.tolist()
+
+
 def test_resample_half_rate_keeps_every_second_frame(sk):
     m = random_motion(sk, T=121, fps=120)
     h = m.resample(60)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from course_lib.motion import Motion
+from course_lib.motion import STANCE_MAX_ABOVE, Motion, trusted_contacts
 from course_lib.skeleton import Skeleton
 
 __all__ = ["contact_agreement", "lower_toe", "skate_sources"]
@@ -26,7 +26,7 @@ def lower_toe(positions, skeleton: Skeleton) -> np.ndarray:
     return pos[..., toes, 1].min(-1)
 
 
-def skate_sources(positions, bits, skeleton: Skeleton, fps: float, max_above: float = 0.05) -> dict:
+def skate_sources(positions, bits, skeleton: Skeleton, fps: float, max_above: float = STANCE_MAX_ABOVE) -> dict:
     """Where a motion's foot skate comes from: flagged toes vs toes near the floor whose bit is off.
 
     positions (N, T, J, 3) world, m; bits (N, T, 2) bool contact labels (left, right toe).  A toe pair of frames
@@ -44,7 +44,7 @@ def skate_sources(positions, bits, skeleton: Skeleton, fps: float, max_above: fl
         raise ValueError(f"skate_sources: bits must be (N, T, 2) = {pos.shape[:2] + (2,)}, got {b.shape}")
     toes = pos[:, :, [skeleton.index(f"{side}ToeBase") for side in ("Left", "Right")]]  # (N, T, 2, 3)
     y = toes[..., 1]
-    flagged = b & (y <= y.min(-1, keepdims=True) + max_above)
+    flagged = trusted_contacts(b, y, max_above)
     flagged = flagged[:, 1:] & flagged[:, :-1]
     low = y < CONTACT_HEIGHT["ToeBase"]
     low = low[:, 1:] & low[:, :-1]

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from course_lib.motion import STANCE_MAX_ABOVE, trusted_contacts
 from course_lib.skeleton import Skeleton
 
 __all__ = ["TOE_FLOOR", "enforce_contacts", "plant_feet", "toe_floor_height"]
@@ -58,7 +59,7 @@ def _interpolate_gaps(values: np.ndarray, known: np.ndarray) -> np.ndarray:
 
 
 def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR, threshold: float = 0.5,
-                     smooth: int = 1, max_above: float | None = 0.05):
+                     smooth: int = 1, max_above: float | None = STANCE_MAX_ABOVE):
     """Raw state features (..., T, D) with contact bits -> the same with root height and floor steps corrected
     so that the stance toe stays on the floor and does not slide (see the module docstring).
 
@@ -85,7 +86,7 @@ def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR,
     out = flat.numpy().copy()
     bits = out[..., -2:] > threshold  # (N, T, 2)
     if max_above is not None:
-        bits &= toes[..., 1] <= toes[..., 1].min(-1, keepdims=True) + max_above
+        bits = trusted_contacts(bits, toes[..., 1], max_above)
     for n in range(len(out)):
         fixed = _enforce_one(out[n].copy(), toes[n], bits[n], toe_floor)
         out[n][:, [0, 1, 3]] += _moving_average(fixed[:, [0, 1, 3]] - out[n][:, [0, 1, 3]], int(smooth))
@@ -130,7 +131,7 @@ def _enforce_one(f: np.ndarray, toes: np.ndarray, bits: np.ndarray, toe_floor: f
 
 
 def plant_feet(features, skeleton: Skeleton, columns, offsets=None, toe_floor: float = TOE_FLOOR,
-               threshold: float = 0.5, max_above: float | None = 0.05, sigma_slide: float = 0.003,
+               threshold: float = 0.5, max_above: float | None = STANCE_MAX_ABOVE, sigma_slide: float = 0.003,
                sigma_floor: float = 0.01, sigma_angle: float = 0.1, sigma_root: float = 0.02,
                smoothness: float = 4.0, iterations: int = 60):
     """Raw state features (N, T, D) with contact bits -> the same with ``columns`` (e.g. the root's floor steps
@@ -161,7 +162,7 @@ def plant_feet(features, skeleton: Skeleton, columns, offsets=None, toe_floor: f
         toes = local_positions(f, skeleton, off)[..., toes_idx, :]  # (N, T, 2, 3)
     bits = f[..., -2:] > threshold
     if max_above is not None:
-        bits &= toes[..., 1] <= toes[..., 1].min(-1, keepdim=True).values + max_above
+        bits = trusted_contacts(bits, toes[..., 1], max_above)
     pinned = (bits[:, 1:] & bits[:, :-1]).double()  # (N, T-1, 2)
     flagged = bits.double()
     scale = torch.where(cols < 6, sigma_root, sigma_angle).double()
