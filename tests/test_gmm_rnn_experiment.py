@@ -158,3 +158,31 @@ def test_skate_study_measures_one_model(setup):
         assert np.isfinite(res[k]) and res[k] >= 0, k
     assert res["long"]["nan_motions"] == 0 and 0 <= res["long"]["in_range_motions"] <= 4
     assert set(study.VARIANTS) >= {"before", "anchored", "anchored_noise01", "noise01_angles_03"}
+
+
+def test_open_causes_tool_known_answers(setup):
+    """tools/gmm_rnn_open_causes.py's measures on inputs whose answers are known: the straight-through bits get a
+    gradient exactly where the raw bit is in [0, 1]; the clamp mixture; the FID's mean term; the per-frame
+    grounding report; the contact tests split as motion.foot_contacts combines them."""
+    tool = load_tool("gmm_rnn_open_causes")
+    clips, ds, *_ = setup
+    r = Refiner(RefinerConfig.cpu(fc_width=8, lstm_width=8, contacts=True, discriminator_contacts=True)).eval()
+    x = torch.zeros(1, 4, 68)
+    x[0, :, 66] = torch.tensor([-0.5, 0.0, 0.3, 1.0])  # raw = normalised (stats None): in [0, 1] for 3 of 4
+    x[0, :, 67] = torch.tensor([1.5, 0.7, -2.0, 2.0])  # 1 of 4
+    assert tool.bit_gradient_fraction(r, x, X.clip_offsets(clips[:1])) == pytest.approx(4 / 8)
+    a, b = torch.zeros(2, 3, 68), torch.ones(2, 3, 68)
+    m = tool.mix(a, b, [3, 5])
+    assert m[..., [3, 5]].eq(1).all() and m.sum() == 2 * 3 * 2 and a.sum() == 0
+    f = np.random.default_rng(0).normal(size=(50, 4))
+    t = tool.fid_terms(f, f + np.array([1.0, 2.0, 0.0, 0.0]))
+    assert t["mean_term"] == pytest.approx(5.0) and abs(t["covariance_term"]) < 1e-6
+    sk = clips[0].skeleton
+    pos = np.zeros((2, 5, sk.num_joints, 3))
+    pos[..., 0, 1] = 0.9  # root height
+    pos[1, 3, [sk.index("LeftToeBase"), sk.index("RightToeBase")], 1] = 0.5  # both toes 0.5 m up on one frame
+    rep = tool.ungrounded_report(pos, sk, toe_top=0.3, lo=0.8, hi=1.0)
+    assert rep["grounded_motions"] == 1 and rep["in_range_motions"] == 2
+    assert [(u["motion"], u["frames"]) for u in rep["ungrounded"]] == [(1, [3])]
+    low, slow = tool.foot_low_slow(clips[:2], 30.0)
+    assert np.array_equal(slow, np.stack([c.contacts() for c in clips[:2]])) and (low >= slow).all()
