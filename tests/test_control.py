@@ -442,3 +442,44 @@ def test_a_window_whose_control_energy_stays_high_is_searched_again(prior, walk)
     assert all(w.get("retried") for w in wa) and not any(w.get("retried") for w in wn)
     # the first window starts from the same state and draws: the retried one keeps the better of two searches
     assert wa[0]["terms"]["total"] <= wn[0]["terms"]["total"] + 1e-6
+
+
+def test_denoise_problem_data_terms_known_answers(prior, walk):
+    """Eq. (25) on the input's own frames is 0; 1 sigma on every frame of one channel costs (T - 1) / 2."""
+    from course_lib.control import DenoiseConfig
+    from course_lib.control.denoise import angle_cols, denoise_problem
+
+    P = denoise_problem(walk, prior, DenoiseConfig(initial_state_steps=0, sigma_root=0.02, sigma_angle=0.1))
+    raw = P.c[:, 1:].double()
+    T1 = raw.shape[1]
+    zero = P.data_terms(raw)
+    assert float(zero["root"]) == pytest.approx(0.0, abs=1e-12) and float(zero["angle"]) == 0.0
+    up = raw.clone()
+    up[..., 3] += 0.02  # the root height, one sigma_root up on every frame
+    assert float(P.data_terms(up)["root"]) == pytest.approx(T1 / 2, rel=1e-9)
+    assert float(P.data_terms(up)["angle"]) == 0.0
+    bent = raw.clone()
+    bent[..., angle_cols(prior.dim)[7]] += 0.1  # one joint-angle channel, one sigma_angle
+    assert float(P.data_terms(bent)["angle"]) == pytest.approx(T1 / 2, rel=1e-9)
+    assert 4 in angle_cols(prior.dim) and 2 not in angle_cols(prior.dim)  # pitch in, the yaw step not
+    # the energy denoise minimises: its "control" term is eq. (25)
+    assert float(P.terms(up, P.mixtures(up))["control"]) == pytest.approx(T1 / 2, rel=1e-9)
+
+
+def test_denoise_starts_where_it_is_told(prior, walk):
+    """With no L-BFGS evaluations denoise returns its start: the input by default, ``start`` when given."""
+    from course_lib.control import DenoiseConfig, denoise
+    from course_lib.synthetic import add_noise
+
+    noisy = add_noise(walk, seed=0, spike_rate=0.0)
+    cfg = DenoiseConfig(iterations=0, initial_state_steps=0)
+
+    from course_lib.representations import encode_state_features
+
+    def err(a, b):  # the variables' columns (not the fixed ones, which the prior holds at the data's constants)
+        return float(np.abs(encode_state_features(a)[1:, prior.free] - encode_state_features(b)[1:, prior.free]).max())
+    assert err(denoise(noisy, prior=prior, config=cfg), noisy) < 1e-9
+    assert err(denoise(noisy, prior=prior, config=cfg, start=walk), walk) < 1e-9
+    assert err(noisy, walk) > 0.01  # the two starts differ
+    with pytest.raises(ValueError, match="frames"):
+        denoise(noisy, prior=prior, config=cfg, start=walk[:10])

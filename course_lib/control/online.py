@@ -45,6 +45,8 @@ class OnlineConfig:
     batch: int = 10  # frames optimised and returned per step (the latency)
     candidates: int = 4  # RNN samples per step; the best starts L-BFGS
     lbfgs_iterations: int = 3  # function evaluations per step (2: 74 frames/s but 180 degrees took 2.7 s; 4: 33)
+    # ... and they bound the running speed-up 1.5 -> 3.25 m/s (2.7 s; 10: within 0.67 s at 19 frames/s;
+    # tools/control_speedup.py): the RNN's samples keep its pace, so the speed must come from L-BFGS
     sigma_speed: float = 0.05  # m/s, eq. (22)
     sigma_direction: float = 0.01  # rad, eq. (23); 0.03 took 2 s for a 180-degree command, 0.01 took 1 s
     max_turn: float = math.radians(60)  # the most the asked direction differs from the heading, per batch

@@ -184,16 +184,18 @@ def online_program(gait: str) -> list[tuple[float, float, float]]:
     return [(3.0, v, 0.0), (3.0, 0.6 * v, 0.0), (3.0, 1.3 * v, 0.0), (4.0, v, math.pi), (4.0, v, 0.0)]
 
 
-def online_run(gait: str = "walk", seed: int = 0) -> dict:
-    """The scripted run -> per batch (time, commanded speed and direction, measured net speed and heading),
+def online_run(gait: str = "walk", seed: int = 0, config=None, program=None) -> dict:
+    """The scripted run (``program``: (seconds, speed, direction) segments, default ``online_program(gait)``;
+    ``config``: an OnlineConfig, default the controller's) -> per batch (time, commanded speed and direction,
+    measured net speed and heading),
     the speed settling times (within 10 % of a changed command), the turn times (heading within 10 degrees
     of a +-180-degree command), frames/s of the whole run on this core, the latency in frames."""
     from course_lib.control import OnlineController
 
-    ctrl = OnlineController(gait, seed=seed)
+    ctrl = OnlineController(gait, seed=seed, config=config)
     dt = ctrl.config.batch / ctrl.fps
     log, t, t0 = [], 0.0, time.perf_counter()
-    for seconds, speed, direction in online_program(gait):
+    for seconds, speed, direction in program or online_program(gait):
         for _ in range(int(round(seconds / dt))):
             m = ctrl.step(speed, direction)
             xz = m.root_positions[:, [0, 2]]
