@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from course_lib.datasets import FixedDofs
-from course_lib.evaluation import classifier_features, frechet_distance, load_classifier
+from course_lib.evaluation import classifier_features, fid, load_classifier
 from course_lib.evaluation.contacts import contact_agreement, lower_toe
 from course_lib.experiments import gmm_rnn as X
 from course_lib.representations import encode_state_features, feature_names
@@ -34,11 +34,6 @@ from course_lib.representations import encode_state_features, feature_names
 COMMAND = "OMP_NUM_THREADS=1 python tools/gmm_rnn_open_causes.py --out tools/gmm_rnn_open_causes_results.json"
 GROUPS = {"root": list(range(6)), "legs": list(range(6, 30)), "spine/arms": list(range(30, 66)),
           "contact bits": [66, 67]}
-
-
-def fid_of(fr: np.ndarray, fg: np.ndarray) -> float:
-    """FID from (N, F) features (evaluation.fid's Gaussians)."""
-    return frechet_distance(fr.mean(0), np.cov(fr, rowvar=False), fg.mean(0), np.cov(fg, rowvar=False))
 
 
 class Scorer:
@@ -70,7 +65,7 @@ def column_shift(rnn: torch.Tensor, refined: torch.Tensor, varying: np.ndarray) 
 def fid_terms(fr: np.ndarray, fg: np.ndarray) -> dict:
     """FID = ||mu_r - mu_g||^2 (the mean term) + the covariance term."""
     m = float(((fr.mean(0) - fg.mean(0)) ** 2).sum())
-    return {"fid": fid_of(fr, fg), "mean_term": m, "covariance_term": fid_of(fr, fg) - m}
+    return {"fid": fid(fr, fg), "mean_term": m, "covariance_term": fid(fr, fg) - m}
 
 
 def fid_experiment(model, stats, spec, test, train, n_boot: int, seed: int = 0) -> dict:
@@ -81,11 +76,11 @@ def fid_experiment(model, stats, spec, test, train, n_boot: int, seed: int = 0) 
     sc = Scorer(stats, test, spec.fps)
     fr = classifier_features(mocap, sc.clf)
     feats = {k: sc.features(v) for k, v in sets.items()}
-    out = {"fid": {k: fid_of(fr, f) for k, f in feats.items()}, "feature_dim": int(fr.shape[1]),
+    out = {"fid": {k: fid(fr, f) for k, f in feats.items()}, "feature_dim": int(fr.shape[1]),
            "fid_terms": {k: fid_terms(fr, f) for k, f in feats.items()}}
     # real vs real at the same size: 120 random training clips (other subjects) against the 120 held-out ones
     rng = np.random.default_rng(seed)
-    real = [fid_of(fr, classifier_features([train[i][:T] for i in rng.choice(len(train), len(test), replace=False)],
+    real = [fid(fr, classifier_features([train[i][:T] for i in rng.choice(len(train), len(test), replace=False)],
                                            sc.clf)) for _ in range(20)]
     out["mocap_train_vs_heldout_same_size"] = {"n_draws": 20, "mean": float(np.mean(real)), "sd": float(np.std(real)),
                                                "min": float(np.min(real)), "max": float(np.max(real))}
@@ -98,8 +93,8 @@ def fid_experiment(model, stats, spec, test, train, n_boot: int, seed: int = 0) 
         row = {}
         for g, cols in GROUPS.items():
             vc = [c for c in cols if c in set(varying)]
-            row[f"only {g} from R"] = fid_of(fr, sc.features(mix(sets["RNN"], ref, cols)))
-            row[f"all but {g} from R"] = fid_of(fr, sc.features(mix(ref, sets["RNN"], cols)))
+            row[f"only {g} from R"] = fid(fr, sc.features(mix(sets["RNN"], ref, cols)))
+            row[f"all but {g} from R"] = fid(fr, sc.features(mix(ref, sets["RNN"], cols)))
             row[f"rms change {g} (sd)"] = float(((ref - sets["RNN"])[..., vc] ** 2).mean().sqrt()) if vc else 0.0
         clamp[f"GAN1 seed {s}"] = row
     out["clamp"] = clamp
@@ -121,25 +116,25 @@ def fid_experiment(model, stats, spec, test, train, n_boot: int, seed: int = 0) 
     for j in range(2, 22):
         cols = [c for c in range(3 * j, 3 * j + 3) if c in set(varying)]
         if cols:
-            per_joint[names[3 * j][:-3]] = fid_of(fr, sc.features(mix(sets["RNN"], sets["GAN1 seed 1"], cols)))
+            per_joint[names[3 * j][:-3]] = fid(fr, sc.features(mix(sets["RNN"], sets["GAN1 seed 1"], cols)))
     out["seed1_only_one_joint_from_R"] = per_joint
     out.update(fid_noise(fr, feats, mocap, test, spec, n_boot, seed))
     # a few clips?  each clip's influence on seed 1's FID (leave one out), then drop the top k from every set
     f1 = feats["GAN1 seed 1"]
-    infl = np.array([out["fid"]["GAN1 seed 1"] - fid_of(fr, np.delete(f1, i, 0)) for i in range(len(f1))])
+    infl = np.array([out["fid"]["GAN1 seed 1"] - fid(fr, np.delete(f1, i, 0)) for i in range(len(f1))])
     order = np.argsort(-infl)
     out["leave_clips_out"] = {"top10_clips": order[:10].tolist(), "top10_influence": infl[order[:10]].tolist()}
     for k in [k for k in (5, 10, 20) if k < len(f1) // 2]:
         keep = np.setdiff1d(np.arange(len(f1)), order[:k])
-        out["leave_clips_out"][f"drop top {k} of seed 1"] = {n: fid_of(fr, f[keep]) for n, f in feats.items()}
+        out["leave_clips_out"][f"drop top {k} of seed 1"] = {n: fid(fr, f[keep]) for n, f in feats.items()}
     subj = np.array([m.subject for m in test])
-    out["fid_per_subject"] = {str(u): {n: fid_of(fr[subj == u], f[subj == u]) for n, f in feats.items()}
+    out["fid_per_subject"] = {str(u): {n: fid(fr[subj == u], f[subj == u]) for n, f in feats.items()}
                               for u in np.unique(subj)}
     # other RNN samples of the same clips, the same refiners
     gen = {0: out["fid"]}
     for g_seed in (1, 2, 3, 4):
         other = X.continuations(model, {f"GAN1 seed {s}": r for s, r in gan1.items()}, test, stats, spec, g_seed)
-        gen[g_seed] = {k: fid_of(fr, sc.features(v)) for k, v in other.items()}
+        gen[g_seed] = {k: fid(fr, sc.features(v)) for k, v in other.items()}
     out["fid_by_rnn_generation_seed"] = {str(k): v for k, v in gen.items()}
     out["fid_by_rnn_generation_seed_summary"] = {
         k: {"mean": float(np.mean([v[k] for v in gen.values()])), "sd": float(np.std([v[k] for v in gen.values()]))}
@@ -158,7 +153,7 @@ def fid_noise(fr, feats, mocap, test, spec, n_boot: int, seed: int) -> dict:
     diff = {"seed 1 - seed 0": [], "seed 1 - seed 2": [], "seed 1 - RNN": []}
     for _ in range(n_boot):
         i = rng.integers(0, N, N)
-        v = {k: fid_of(fr[i], f[i]) for k, f in feats.items()}
+        v = {k: fid(fr[i], f[i]) for k, f in feats.items()}
         for k in feats:
             boot[k].append(v[k])
         diff["seed 1 - seed 0"].append(v["GAN1 seed 1"] - v["GAN1 seed 0"])
@@ -167,7 +162,7 @@ def fid_noise(fr, feats, mocap, test, spec, n_boot: int, seed: int) -> dict:
     halves = []
     for _ in range(50):
         p = rng.permutation(N)
-        halves.append(fid_of(fr[p[: N // 2]], fr[p[N // 2:]]))
+        halves.append(fid(fr[p[: N // 2]], fr[p[N // 2:]]))
     q = lambda a: {"mean": float(np.mean(a)), "sd": float(np.std(a)), "p2.5": float(np.percentile(a, 2.5)),  # noqa: E731
                    "p97.5": float(np.percentile(a, 97.5))}
     return {"bootstrap": {"n": n_boot, **{k: q(v) for k, v in boot.items()},

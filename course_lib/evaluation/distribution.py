@@ -76,7 +76,7 @@ def _features_2d(x, classifier, name: str) -> np.ndarray:
     arr = None if _is_motions(x) else _array(x, name)
     if arr is not None and arr.ndim == 2:
         return arr
-    return classifier_features(x, classifier, name)
+    return classifier_features(x, classifier or load_classifier("action"), name)  # loaded only when needed
 
 
 def fid(real, generated, classifier: MotionClassifier | None = None) -> float:
@@ -86,7 +86,6 @@ def fid(real, generated, classifier: MotionClassifier | None = None) -> float:
     0 for identical sets).  classifier: default the shipped action classifier.  The Gaussians
     N(mu, Sigma) are fitted to the features of the last layer before the final FC layer.
     """
-    classifier = classifier or load_classifier("action")
     fr = _features_2d(real, classifier, "real")
     fg = _features_2d(generated, classifier, "generated")
     if fr.shape[1] != fg.shape[1]:

@@ -351,7 +351,7 @@ def matched_control_pairs(train_ds: WindowDataset, test_ds: WindowDataset, half_
         return ctrl.reshape(-1, ctrl.shape[2] * 3), pose.reshape(-1, *pose.shape[2:])
 
     (c_tr, p_tr), (c_te, p_te) = windows(train_ds), windows(test_ds)
-    sd = np.tile(c_tr.reshape(len(c_tr), -1, 3).reshape(-1, 3).std(0), c_tr.shape[1] // 3)
+    sd = np.tile(c_tr.reshape(-1, 3).std(0), c_tr.shape[1] // 3)  # each control channel's sd
     a, b = c_te / sd, c_tr / sd
     d2 = (a ** 2).sum(1)[:, None] + (b ** 2).sum(1)[None] - 2 * a @ b.T
     nearest = d2.argmin(1)
