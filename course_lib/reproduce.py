@@ -70,7 +70,8 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1 is fastest on a busy CPU)")
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
-    parser.add_argument("--only", nargs="*", default=None, help="train only these models (others: checkpoints)")
+    parser.add_argument("--only", nargs="*", default=None,
+                        help="train only these models (others: checkpoints); control: measure only these parts")
     parser.add_argument("--checkpoints", type=Path, default=CHECKPOINTS, help="checkpoint folder (with MANIFEST.json)")
     parser.add_argument("--record", action="store_true",
                         help="with --eval-only: store the evaluation in the manifest as training does (vae_lstm)")

@@ -6,7 +6,8 @@ three inputs (the clean clips themselves, the spikes alone, all of make_noisy's 
 - the representation round trip alone (encode, fixed columns to their constants, decode; no optimisation);
 - each energy term dropped (prior eq. 15, contact eq. 18, eq. 25's root term, its angle term) or d (eq. 16);
 - the data-term sigmas; the optimiser's start (the clean motion itself: an oracle; a 5-frame running median of
-  the input) and its stopping rule (more L-BFGS evaluations, more rounds); the zero initial state; the model's
+  the input's eq. (3) features; the input low-passed, control/lowpass.py, which denoise now starts from) and its
+  stopping rule (more L-BFGS evaluations, more rounds); the zero initial state; the model's
   own 0.01 sigma floor;
 - the energy of eq. (19) (eq. 15 through each motion's own history) of the clean motion, the input and the
   filtered output, and each term's gradient at the clean motion (is it a minimum?  which term pulls, where?).
@@ -39,11 +40,16 @@ from course_lib.synthetic import add_noise
 
 NOISE = {"clean": None, "spikes": {"jitter_sd": 0.0, "root_sd": 0.0, "drop_rate": 0.0}, "all": {}}
 BIG = 1e3  # a sigma this wide drops its data term (its weight ~1e-4 of the default's)
+BASE_NAME = "from the input (the earlier default)"
+# the filter as it was: every row but the low-pass start searches from the input
+BASE = DenoiseConfig(start_cutoff_hz=None, sigma_angle=0.05, first_frame="input", held_frames="keep")
 CONDITIONS = {  # name -> (DenoiseConfig overrides, start)
-    "default": ({}, None),
+    BASE_NAME: ({}, None),
     "no optimisation (round trip only)": ({"iterations": 0}, None),
     "start: the clean motion (oracle)": ({}, "clean"),
     "start: 5-frame running median of the input": ({}, "median"),
+    "the shipped filter (4-Hz low-pass start, held frames filled, sigma_angle 0.03)": (
+        {"start_cutoff_hz": 4.0, "sigma_angle": 0.03, "held_frames": "fill"}, None),
     "no prior (eq. 15)": ({"weights": {"prior": 0.0}}, None),
     "no contact term (eq. 18)": ({"weights": {"contact": 0.0}}, None),
     "no root data term (sigma_root 1e3)": ({"sigma_root": BIG}, None),
@@ -82,7 +88,7 @@ def channel_groups(skeleton) -> dict:
 def energy_study(m, n, out) -> dict:
     """Eq. (19) (eq. 15 through each motion's own history) of the clean clip, the input and the output; the
     gradient of each term at the clean clip, per channel group (normalised units, as the solver sees them)."""
-    P = denoise_problem(n)
+    P = denoise_problem(n, config=BASE)
     E = P.energy
 
     def raw(x):
@@ -132,15 +138,15 @@ def main() -> None:
         t0, per = time.perf_counter(), []
         for n, c in zip(noisy, clean, strict=True):
             s = {"clean": c, "median": median_start(n) if start == "median" else None}.get(start)
-            out = denoise(n, seed=0, config=replace(DenoiseConfig(), **over), start=s)
+            out = denoise(n, seed=0, config=replace(BASE, **over), start=s)
             per.append(C._denoise_scores(out, c))
-            if name == "default":
+            if name == BASE_NAME:
                 per[-1]["study"] = energy_study(c, n, out)
         row = {s: float(np.mean([r[s] for r in per])) for s in per[0] if s != "study"}
         row["per_clip_mean_joint_error_m"] = [r["mean_joint_error_m"] for r in per]
         row["ratio_to_input"] = row["mean_joint_error_m"] / max(block["input_error_m"], 1e-12)
         row["seconds"] = time.perf_counter() - t0
-        if name == "default":
+        if name == BASE_NAME:
             row["studies"] = [r["study"] for r in per]
         block.setdefault("conditions", {})[name] = row
         print(f"{args.inputs:6s} {name:50s} {100 * row['mean_joint_error_m']:.3f} cm "

@@ -5,28 +5,33 @@
       + sum_i sum_j ||angle_j(c_i) - angle_j(s_i)||^2 / (2 sigma_angle^2)
 
 c: the noisy input (its root positions and joint angles), s: the filtered frames; root(s_i) through eq. (4).
-The frames s themselves (their free columns) and d are the variables, started at the input, solved by L-BFGS;
-the RNN starts from the eq. (26) state estimated on the input's first two frames (initial_state.py).
+The frames s themselves (their free columns) are the variables, solved by L-BFGS from the input low-passed at
+4 Hz (lowpass.py) with its dropped frames interpolated first (dropouts.py); the RNN starts from the eq. (26)
+state estimated on the input's first two frames (initial_state.py).
 
 Taught in notebooks/04_map_control.ipynb.
 
-Differs from the paper: sigma_root, sigma_angle are not given; ours are the noise model's scales
-(synthetic.add_noise: root 5 mm, joint jitter 0.02 rad) widened to 1 cm and 0.05 rad.  Angles are the
-expmaps of eq. (3) and the root's pitch and roll; the contact bits are the input's (derived from its pose).
-Frame 0 is kept as given (the start the integration of eq. 4 needs).
-Minimising eq. (15) through the RNN's inputs as well let L-BFGS move earlier frames to where the model is most
-confident (its sigmas are floored at 0.01 of the data's std): the prior fell to -200 nats/frame (mocap: -80) and
-the joint error rose from 2.0 to 3.0 cm on a held-out walk.  We therefore alternate: fix every frame's mixture as
-predicted from the current estimate, minimise eq. (19) over the frames with those mixtures (d = 0), repeat
-(``rounds``); ``rounds=0`` is the plain joint minimisation.  Even with fixed mixtures, the model's 0.01 sigma
-floor made some joint angles of an unseen subject cost 17 sigma (its style is not the training subjects'), so the
-energy floors the sigmas at ``prior_min_std`` = 0.3 (normalised units).  Measured (mean joint error, noisy ->
-filtered, held-out walks, spike rate 0.05): 2.12 -> 2.11 cm and 2.44 -> 2.08 cm; a 2-s walk of an unseen subject:
-1.84 -> 1.40 cm.  The spikes are not removed (max error 0.75 m stays): a Gaussian data term follows them.
-The error that remains is the search's, not the energy's (tools/control_denoise_floor.py, 8 held-out clips with
-make_noisy's noise): from the noisy input L-BFGS stops in a minimum whose eq. (19) energy is above the clean motion's
-(6 of 8 clips), 0.90x the input's joint error; started at the clean motion the same energy gives 0.47x.  More
-evaluations or rounds, other sigmas and dropping a term do not close it; ``denoise_problem`` exposes the energy.
+Differs from the paper (which gives no sigmas, no start and no noise model beyond eq. 25's Gaussians):
+
+- sigma_root 1 cm and sigma_angle 0.03 rad: the noise model's scales (synthetic.add_noise: root 5 mm, joint
+  jitter 0.02 rad) widened; 0.03 picked on tuning clips (tools/control_denoise_start.py).  Angles are the expmaps
+  of eq. (3) and the root's pitch and roll; the contact bits are the input's (derived from its pose; taking them
+  from the start or re-deriving them each round, ``contact_bits``, measured no better).  Frame 0 is kept as given
+  (the start the integration of eq. 4 needs; the low-passed frame 0, ``first_frame="start"``, measured worse).
+- Fixed-mixture rounds.  Minimising eq. (15) through the RNN's inputs as well let L-BFGS move earlier frames to
+  where the model is most confident (its sigmas are floored at 0.01 of the data's std): the prior fell to -200
+  nats/frame (mocap: -80) and the joint error rose from 2.0 to 3.0 cm on a held-out walk.  We therefore alternate:
+  fix every frame's mixture as predicted from the current estimate, minimise eq. (19) over the frames with those
+  mixtures (d = 0), repeat (``rounds``); ``rounds=0`` is the plain joint minimisation.  Even with fixed mixtures,
+  the model's 0.01 sigma floor made some joint angles of an unseen subject cost 17 sigma, so the energy floors the
+  sigmas at ``prior_min_std`` = 0.3 (normalised units).
+- The start.  From the noisy input itself L-BFGS stopped in a minimum near it, above the clean motion's eq. (19)
+  energy (6 of 8 clips, 0.90x the input's joint error; started at the clean motion the same energy gives 0.47x:
+  tools/control_denoise_floor.py).  The low-pass start is what a reader can compute instead.
+- Dropped frames.  A capture's lost frame holds the last good frame bit for bit (make_noisy does the same); such a
+  frame is left out of eq. (25) (a missing observation, not a measurement of a frozen pose) and interpolated in
+  the start (``held_frames="fill"``).  Measured on the tuning clips: 1.48 -> 1.14 cm mean joint error.
+- The spikes (1 % of frames, 0.6 rad) are not modelled: a Gaussian data term follows them partly.
 """
 
 from __future__ import annotations
@@ -43,7 +48,12 @@ from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import Motion
 
-__all__ = ["DenoiseConfig", "DenoiseProblem", "denoise", "denoise_problem"]
+__all__ = ["CONTACT_BITS", "FIRST_FRAME", "HELD_FRAMES", "DenoiseConfig",
+           "DenoiseProblem", "denoise", "denoise_problem"]
+
+CONTACT_BITS = ("input", "start", "rounds")
+FIRST_FRAME = ("input", "start")
+HELD_FRAMES = ("fill", "keep")
 
 
 @dataclass
@@ -51,12 +61,16 @@ class DenoiseConfig:
     """Denoising settings (the paper gives none)."""
 
     sigma_root: float = 0.01  # m, eq. (25)
-    sigma_angle: float = 0.05  # rad, eq. (25)
+    sigma_angle: float = 0.03  # rad, eq. (25) (tools/control_denoise_start.py picked it on tuning clips)
     iterations: int = 80  # L-BFGS function evaluations per round
     initial_state_steps: int = 100  # eq. (26) gradient steps; 0: the zero state
     prior_min_std: float | None = 0.3  # floor on the prior's sigmas, normalised units (see "differs"); None: 0.01
     rounds: int = 3  # fixed-history rounds (see "differs"); 0: eq. (15) with gradients through the history
     weights: dict = field(default_factory=dict)  # a factor per term of eq. (19) ("prior", "contact", ...); {}: all 1
+    contact_bits: str = "input"  # eq. (18)'s stance bits: "input", "start" (the start's), "rounds" (see "differs")
+    held_frames: str = "fill"  # dropped frames: "fill" (interpolated in the start, out of eq. 25) or "keep"
+    first_frame: str = "input"  # frame 0 and the root's start: "input" (as given) or "start" (the search start's)
+    start_cutoff_hz: float | None = 4.0  # Hz: search from the input low-passed so (lowpass.py); None: the input
 
 
 @dataclass
@@ -75,14 +89,16 @@ class DenoiseProblem:
     bits: torch.Tensor
     state: tuple | None
     config: DenoiseConfig
+    weight: torch.Tensor | None = None  # (1, T-1, 1): 1 where eq. (25) sees the input's frame, 0 on held frames
 
     def data_terms(self, raw: torch.Tensor) -> dict:
         """Raw frames (N, T-1, D) -> eq. (25)'s {"root", "angle"} (N,) each."""
         xz, _ = integrate_root(raw[..., 0:2], raw[..., 2], self.energy.init.expand(len(raw), 3))
         root = torch.stack((xz[..., 0], raw[..., 3], xz[..., 1]), -1)
         cfg, cols = self.config, angle_cols(self.prior.dim)
-        return {"root": ((self.c_root - root) ** 2).sum((-1, -2)) / (2 * cfg.sigma_root ** 2),
-                "angle": ((self.c[:, 1:, cols] - raw[..., cols]) ** 2).sum((-1, -2)) / (2 * cfg.sigma_angle ** 2)}
+        w = 1.0 if self.weight is None else self.weight
+        return {"root": (w * (self.c_root - root) ** 2).sum((-1, -2)) / (2 * cfg.sigma_root ** 2),
+                "angle": (w * (self.c[:, 1:, cols] - raw[..., cols]) ** 2).sum((-1, -2)) / (2 * cfg.sigma_angle ** 2)}
 
     def terms(self, raw: torch.Tensor, params: dict | None = None) -> dict:
         """Raw frames (N, T-1, D) -> eq. (19)'s terms (N,) each ("control" = eq. 25), the prior under the fixed
@@ -111,9 +127,12 @@ def angle_cols(dim: int) -> list:
     return [4, 5] + list(range(6, dim - 2))
 
 
-def denoise_problem(motion: Motion, prior: RnnPrior | None = None,
-                    config: DenoiseConfig | None = None) -> DenoiseProblem:
-    """A noisy motion (at the RNN's 30 fps, >= 3 frames) -> the MAP problem `denoise` solves (eq. 19, 25)."""
+def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: DenoiseConfig | None = None,
+                    first: Motion | None = None) -> DenoiseProblem:
+    """A noisy motion (at the RNN's 30 fps, >= 3 frames) -> the MAP problem `denoise` solves (eq. 19, 25).
+
+    first: the motion whose frame 0 (kept, not a variable), root start (x0, z0, yaw0) and first two frames (for
+    the eq. 26 state) the filtered motion starts from; same length; None: the input's."""
     from course_lib.control.design import default_prior, stance_plane
     from course_lib.representations import encode_state_features, root_start
 
@@ -132,12 +151,21 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None,
         raise ValueError("denoise: motion contains NaN or inf")
     skel = motion.skeleton
     c = prior.clean(torch.from_numpy(encode_state_features(motion)))[None]  # (1, T, D) the input c
-    init = torch.tensor(root_start(motion), dtype=torch.float64)
+    first = motion if first is None else first
+    if len(first) != len(motion):
+        raise ValueError(f"denoise: first must have the input's {len(motion)} frames, got {len(first)}")
+    a = c if first is motion else prior.clean(torch.from_numpy(encode_state_features(first)))[None]
+    c[:, 0] = a[:, 0]  # frame 0 is never in eq. (25)'s sum: it only starts the motion
+    init = torch.tensor(root_start(first), dtype=torch.float64)
     state = None
     if config.initial_state_steps:
-        state, _ = estimate_initial_state(prior, c[:, :2], skel, config.initial_state_steps)
+        state, _ = estimate_initial_state(prior, a[:, :2], skel, config.initial_state_steps)
     c_root = torch.from_numpy(motion.root_positions[1:])[None]  # (1, T-1, 3)
     problem = DenoiseProblem(prior, c, c_root, None, c[:, 1:, prior.contact_cols], state, config)
+    if config.held_frames == "fill":
+        from course_lib.control.dropouts import held_frames
+
+        problem.weight = torch.from_numpy(~held_frames(motion)[1:]).double()[None, :, None]
 
     def data_term(xz, yaw, raw):  # eq. (25)
         return sum(problem.data_terms(raw).values())
@@ -152,25 +180,43 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
     """A noisy motion (at the RNN's 30 fps, >= 3 frames) -> the filtered motion, same skeleton and length.
 
     seed: torch's seed for the run (the solver is deterministic; kept for a uniform interface).
-    start: the motion the solver starts from (same length and skeleton; None: the input itself)."""
+    start: the motion the solver starts from (same length and skeleton; None: the input low-passed at
+    config.start_cutoff_hz, or the input itself where that is None or the input is too short to filter,
+    under lowpass.BUTTER_MIN_FRAMES frames)."""
+    from course_lib.control.dropouts import fill_held
+    from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
     from course_lib.representations import encode_state_features
 
     torch.manual_seed(seed)
-    problem = denoise_problem(motion, prior, config)
+    config = config or DenoiseConfig()
+    for name, value, allowed in (("contact_bits", config.contact_bits, CONTACT_BITS),
+                                 ("first_frame", config.first_frame, FIRST_FRAME),
+                                 ("held_frames", config.held_frames, HELD_FRAMES)):
+        if value not in allowed:
+            raise ValueError(f"denoise: {name} must be one of {allowed}, got {value!r}")
+    if start is None and config.start_cutoff_hz is not None and len(motion) >= BUTTER_MIN_FRAMES:
+        start = lowpass(fill_held(motion) if config.held_frames == "fill" else motion, "butter",
+                        config.start_cutoff_hz)
+    elif start is not None and len(start) != len(motion):
+        raise ValueError(f"denoise: start must have the input's {len(motion)} frames, got {len(start)}")
+    problem = denoise_problem(motion, prior, config, start if config.first_frame == "start" else None)
     config, prior, energy, bits = problem.config, problem.prior, problem.energy, problem.bits
     s0 = problem.c
     if start is not None:
-        if len(start) != len(motion):
-            raise ValueError(f"denoise: start must have the input's {len(motion)} frames, got {len(start)}")
         s0 = prior.clean(torch.from_numpy(encode_state_features(start)))[None]
+    if config.contact_bits != "input":
+        bits = s0[:, 1:, prior.contact_cols]
     z, d = energy.to_z(s0[:, 1:]), torch.zeros(1, len(motion) - 1, prior.dim, dtype=torch.float64)
     lb = LbfgsConfig(iterations=config.iterations)
     if not config.rounds:
         (z, d), _ = minimise_lbfgs(lambda z_, d_: energy.terms(energy.frames(z_, bits), d_)["total"].sum(), [z, d], lb)
-    for _ in range(config.rounds):  # each frame's mixture from the current estimate of the frames before it
+    for k in range(config.rounds):  # each frame's mixture from the current estimate of the frames before it
+        if k and config.contact_bits == "rounds":  # the stance bits of the current estimate's pose
+            est = encode_state_features(problem.motion(energy.frames(z, bits), motion))
+            bits = torch.from_numpy(est[None, 1:, prior.contact_cols])
         params = problem.mixtures(energy.frames(z, bits))
 
-        def total(z_, params=params):
+        def total(z_, params=params, bits=bits):
             return problem.terms(energy.frames(z_, bits), params)["total"].sum()
         (z,), _ = minimise_lbfgs(total, [z], lb)
     return problem.motion(energy.frames(z, bits), motion)

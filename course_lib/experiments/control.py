@@ -3,6 +3,7 @@ sec. 5.2-5.4), measured on held-out start frames and clips, against the baseline
 
     python -m course_lib.reproduce control              # every measurement -> the "control" entry of the manifest
     python -m course_lib.reproduce control --eval-only  # the same (nothing is trained: it uses gmm_rnn.pt)
+    python -m course_lib.reproduce control --only denoise   # re-measure some PARTS, keep the others recorded
 
 Taught in notebooks/04_map_control.ipynb, which reads the recorded results (``recorded_results``) in CI mode.
 
@@ -11,11 +12,9 @@ Taught in notebooks/04_map_control.ipynb, which reads the recorded results (``re
   on two cases ours against L-BFGS alone and best-of-N at equal wall time;
 - online control: a scripted run per gait (speed changes, +-180-degree turns), settling times and frames/s;
 - denoising: held-out clips with data_scripts/make_noisy.py's noise (``datasets.noisy_copies``), ours against
-  a zero-phase Butterworth low-pass and a Savitzky-Golay filter at their best settings (picked on the same clips,
-  which favours them);
+  lesson 03's refiner alone and a zero-phase Butterworth low-pass and a Savitzky-Golay filter at their best
+  settings (picked on the same clips, which favours them);
 - eq. (26): the first-frame joint speed from the zero and the estimated initial state, beside mocap's.
-
-Differs from the issue: the refiner-alone denoising baseline is not measured (not built yet).
 """
 
 from __future__ import annotations
@@ -29,7 +28,7 @@ import torch
 
 from course_lib.reproduce import CHECKPOINTS, rounded
 
-__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "filter_motion",
+__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run",
            "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
            "recorded_results"]
 
@@ -229,28 +228,6 @@ def _settle(log: list, key: str, ok) -> list:
 # ----------------------------------------------------------------------------- denoising
 
 
-def filter_motion(motion, kind: str, param: float):
-    """A channel-wise zero-phase filter of the state features (root steps, height, pitch, roll, joint expmaps;
-    the contact bits kept): kind "butter" (4th-order Butterworth low-pass, cutoff param Hz, filtfilt) or
-    "savgol" (Savitzky-Golay, window param frames, cubic) -> the filtered Motion."""
-    from scipy.signal import butter, filtfilt, savgol_filter
-
-    from course_lib.representations import decode_state_features, encode_state_features, root_start
-
-    f = encode_state_features(motion)  # (T, D)
-    cols = slice(0, f.shape[1] - 2)
-    out = f.copy()
-    if kind == "butter":
-        b, a = butter(4, param / (motion.fps / 2))
-        out[:, cols] = filtfilt(b, a, f[:, cols], axis=0)
-    elif kind == "savgol":
-        out[:, cols] = savgol_filter(f[:, cols], int(param), 3, axis=0)
-    else:
-        raise ValueError(f"filter_motion: kind must be 'butter' or 'savgol', got {kind!r}")
-    out[0] = f[0]
-    return decode_state_features(out, motion.skeleton, motion.fps, root_start(motion))
-
-
 def _denoise_scores(out, clean) -> dict:
     from course_lib.evaluation import foot_skate
 
@@ -260,14 +237,35 @@ def _denoise_scores(out, clean) -> dict:
             "contact_agreement": float((out.contacts() == clean.contacts()).mean())}
 
 
-BUTTER_CUTOFFS = (3.0, 4.0, 6.0, 8.0, 10.0, 12.0)  # Hz (Nyquist: 15)
+BUTTER_CUTOFFS = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0)  # Hz (Nyquist: 15)
 SAVGOL_WINDOWS = (5, 7, 9, 13, 17)  # frames at 30 fps
 
 
+def refine_alone(motions: list, checkpoints: Path = CHECKPOINTS) -> list:
+    """The refiner-alone denoising baseline: lesson 03's shipped refiner (GAN2, seed 0) and its contact handling
+    applied to each motion's state features directly (no prior, no data term) -> Motions."""
+    from course_lib.experiments.gmm_rnn import Lesson03Spec, clip_offsets, load_models, to_motions, with_contacts
+    from course_lib.representations import encode_state_features
+
+    _, refiners, stats = load_models(checkpoints)
+    spec, out = Lesson03Spec(), []
+    for m in motions:
+        x = torch.from_numpy((encode_state_features(m) - stats[0]) / stats[1]).float()[None]
+        with torch.no_grad():
+            r = refiners["GAN2"](x, clip_offsets([m]))
+        r = with_contacts(r, stats, [m], spec.contact_smooth, spec.contact_method)
+        out += to_motions(r, stats, [m], spec.fps)
+    return out
+
+
 def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict:
-    """Held-out walks and runs with make_noisy.py's noise: noisy input, ours, the best Butterworth and the best
-    Savitzky-Golay (best mean joint error over these clips) -> mean scores per method, and the clean clips'."""
+    """Held-out walks and runs with make_noisy.py's noise: noisy input, ours, lesson 03's refiner alone, the best
+    Butterworth and the best Savitzky-Golay (best mean joint error over these clips; control/lowpass.py), each
+    also on the input with its dropped frames interpolated (control/dropouts.py, as ours does) -> mean scores per
+    method, the best settings ({method: Hz or frames}), and the clean clips'."""
     from course_lib.control import denoise
+    from course_lib.control.dropouts import fill_held
+    from course_lib.control.lowpass import lowpass
     from course_lib.control.starts import held_out_clips
     from course_lib.datasets import noisy_copies
 
@@ -277,17 +275,22 @@ def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict
     t0 = time.perf_counter()
     per["ours"] = [_denoise_scores(denoise(n, seed=seed), c) for n, c in zip(noisy, clean, strict=True)]
     ours_s = time.perf_counter() - t0
+    per["refiner"] = [_denoise_scores(r, c) for r, c in zip(refine_alone(noisy), clean, strict=True)]
+    on_clean = [_denoise_scores(r, c)["mean_joint_error_m"] for r, c in zip(refine_alone(clean), clean, strict=True)]
     best = {}
-    pairs = list(zip(noisy, clean, strict=True))
+    filled = [fill_held(n) for n in noisy]  # the dropped frames interpolated first, as ours does
     for kind, params in (("butter", BUTTER_CUTOFFS), ("savgol", SAVGOL_WINDOWS)):
-        tries = {p: [_denoise_scores(filter_motion(n, kind, p), c) for n, c in pairs] for p in params}
-        p = min(tries, key=lambda q: np.mean([r["mean_joint_error_m"] for r in tries[q]]))
-        per[kind], best[kind] = tries[p], p
+        for name, inputs in ((kind, noisy), (f"{kind} (held frames filled)", filled)):
+            pairs = list(zip(inputs, clean, strict=True))
+            tries = {p: [_denoise_scores(lowpass(n, kind, p), c) for n, c in pairs] for p in params}
+            p = min(tries, key=lambda q: np.mean([r["mean_joint_error_m"] for r in tries[q]]))
+            per[name], best[name] = tries[p], p
     mean = {k: {s: float(np.mean([r[s] for r in v])) for s in v[0]} for k, v in per.items()}
     from course_lib.evaluation import foot_skate
 
-    out = {"mean": mean, "best_setting": {"butter_cutoff_hz": best["butter"], "savgol_window": best["savgol"]},
-           "clean_foot_skate_m_s": float(foot_skate(clean)), "clips": len(clean), "ours_seconds": ours_s}
+    out = {"mean": mean, "best_setting": best,
+           "clean_foot_skate_m_s": float(foot_skate(clean)), "clips": len(clean), "ours_seconds": ours_s,
+           "refiner_on_clean_mean_joint_error_m": float(np.mean(on_clean))}  # its known answer: a clean input
     if progress:
         progress("denoise", {k: round(v["mean_joint_error_m"], 4) for k, v in mean.items()})
     return out
@@ -322,32 +325,54 @@ def initial_state_eval(clips_per_gait: int = 10) -> dict:
 # ----------------------------------------------------------------------------- the commands
 
 
-def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print) -> dict:
-    """Every measurement of lesson 04 on the shipped GMM-RNN (checkpoints/gmm_rnn.pt)."""
+PARTS = ("offline", "equal_time", "online", "denoise", "initial_state")
+
+
+def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print, only=None) -> dict:
+    """Every measurement of lesson 04 on the shipped GMM-RNN (checkpoints/gmm_rnn.pt), or only the `PARTS`
+    named in `only` (the others kept as recorded; ``measured_by`` says which command measured each part)."""
     import json
 
     torch.set_num_threads(1)
-    t0, times = time.perf_counter(), {}
-    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE,
-           "gmm_rnn_sha256": json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]}
-    for key, fn in (("offline", lambda: offline_eval(seed, progress=progress)),
-                    ("equal_time", lambda: equal_time_eval(seed, progress=progress)),
-                    ("online", lambda: {g: online_run(g, seed) for g in ("walk", "run")}),
-                    ("denoise", lambda: denoise_eval(seed, progress=progress)),
-                    ("initial_state", initial_state_eval)):
+    unknown = sorted(set(only or ()) - set(PARTS))
+    if unknown:
+        raise ValueError(f"control: --only takes parts of {PARTS}, got {unknown}")
+    t0 = time.perf_counter()
+    sha = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]
+    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha}
+    times, by = {}, {}
+    if only:
+        kept = recorded_results(checkpoints)
+        for key, now in (("seed", seed), ("gmm_rnn_sha256", sha), ("pace_m_s", PACE)):
+            if kept.get(key) != now:
+                raise ValueError(f"control: the recorded parts have {key} {kept.get(key)!r}, not {now!r}: "
+                                 f"re-measure every part (no --only)")
+        out = dict(kept)
+        times, by = dict(out.get("seconds", {})), dict(out.get("measured_by", {}))
+    runs = {"offline": lambda: offline_eval(seed, progress=progress),
+            "equal_time": lambda: equal_time_eval(seed, progress=progress),
+            "online": lambda: {g: online_run(g, seed) for g in ("walk", "run")},
+            "denoise": lambda: denoise_eval(seed, progress=progress),
+            "initial_state": initial_state_eval}
+    for key in PARTS:
+        if only and key not in only:
+            by.setdefault(key, COMMAND)
+            continue
         t = time.perf_counter()
-        out[key] = fn()
+        out[key] = runs[key]()
         times[key] = time.perf_counter() - t
-    out["seconds"] = times
-    out["total_seconds"] = time.perf_counter() - t0
+        by[key] = COMMAND + (f" --only {' '.join(only)}" if only else "")
+    out["seconds"], out["measured_by"] = times, by
+    out["total_seconds"] = sum(times.values()) if only else time.perf_counter() - t0  # only: the parts' sum
     out = rounded(out, 5)
     record_results(out, checkpoints)
     return out
 
 
 def train_control(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS) -> dict:
-    """Nothing to train (the prior is lesson 03's gmm_rnn.pt): the evaluation, recorded in the manifest."""
-    return eval_control(seed, checkpoints)
+    """Nothing to train (the prior is lesson 03's gmm_rnn.pt): the evaluation (or its parts in `only`), recorded
+    in the manifest."""
+    return eval_control(seed, checkpoints, only=only)
 
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> None:
