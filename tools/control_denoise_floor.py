@@ -48,7 +48,7 @@ CONDITIONS = {  # name -> (DenoiseConfig overrides, start)
     "no optimisation (round trip only)": ({"iterations": 0}, None),
     "start: the clean motion (oracle)": ({}, "clean"),
     "start: 5-frame running median of the input": ({}, "median"),
-    "the shipped filter (4-Hz low-pass start, held frames filled, sigma_angle 0.03)": (
+    "shipped: 4-Hz low-pass start, held frames filled, sigma 0.03": (
         {"start_cutoff_hz": 4.0, "sigma_angle": 0.03, "held_frames": "fill"}, None),
     "no prior (eq. 15)": ({"weights": {"prior": 0.0}}, None),
     "no contact term (eq. 18)": ({"weights": {"contact": 0.0}}, None),
@@ -127,7 +127,12 @@ def main() -> None:
     noisy = clean if kw is None else [add_noise(m, seed=_clip_seed(1, i), **kw) for i, m in enumerate(clean)]
     path = Path(args.out)
     res = json.loads(path.read_text()) if path.exists() else {"clips": len(clean), "inputs": {}, "commands": {}}
-    res["commands"][args.inputs] = "python " + " ".join(sys.argv)
+    cmd = "python " + " ".join(sys.argv)
+    if args.only:  # rows added to a full run: keep the full run's command beside this one
+        prev = res["commands"].get(args.inputs, [])
+        res["commands"][args.inputs] = ([prev] if isinstance(prev, str) else prev) + [cmd]
+    else:
+        res["commands"][args.inputs] = [cmd]
     block = res["inputs"].setdefault(args.inputs, {})
     block["input_error_m"] = float(np.mean([C._denoise_scores(n, c)["mean_joint_error_m"]
                                             for n, c in zip(noisy, clean, strict=True)]))
