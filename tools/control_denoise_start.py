@@ -60,6 +60,12 @@ ROWS = {  # name -> DenoiseConfig overrides
     "start 4 Hz, sigma_angle 0.05, held frames filled": {"start_cutoff_hz": 4.0, "held_frames": "fill"},
     "start 5 Hz, sigma_angle 0.03, held frames filled": {"start_cutoff_hz": 5.0, "sigma_angle": 0.03,
                                                          "held_frames": "fill"},
+    "shipped, stance bits re-derived each round, contact term x100": {
+        "start_cutoff_hz": 4.0, "sigma_angle": 0.03, "held_frames": "fill", "contact_bits": "rounds",
+        "weights": {"contact": 100.0}},
+    "shipped, stance bits re-derived each round, contact term x1000": {
+        "start_cutoff_hz": 4.0, "sigma_angle": 0.03, "held_frames": "fill", "contact_bits": "rounds",
+        "weights": {"contact": 1000.0}},
 }
 CUTOFFS = (3.0, 4.0, 5.0, 6.0, 8.0)  # the low-pass alone, for the table
 
