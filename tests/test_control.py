@@ -249,6 +249,24 @@ def test_progress_rules_are_checked():
         DesignConfig(progress="speed")
 
 
+def test_design_over_frames_scores_the_same_candidates_and_searches_them(prior, walk):
+    """DesignConfig(space="frames") (the paper's variables): with no PSO and no L-BFGS both spaces keep the same
+    best candidate, so the same motion; with a search the frames' energy does not rise above that start."""
+    from course_lib.control import DesignConfig, design_motion
+
+    curve = np.array([[0.0, 0.0], [0.0, 2.4]])
+    pick = dict(use_pso=False, use_lbfgs=False, retry_control=None)
+    a = design_motion(curve, 1.5, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(**pick))
+    b = design_motion(curve, 1.5, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(space="frames", **pick))
+    assert np.abs(a.positions() - b.positions()).max() < 1e-6
+    c = design_motion(curve, 1.5, start=walk, seed=0, prior=prior,
+                      config=DesignConfig.tiny(space="frames", retry_control=None))
+    for w in c.meta["design"]["windows"]:
+        assert w["terms"]["total"] <= w["pso"][0] + 1e-6
+    with pytest.raises(ValueError, match="space"):
+        design_motion(curve, 1.5, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(space="eps"))
+
+
 def test_design_motion_errors(prior, walk):
     from course_lib.control import design_motion
 

@@ -51,7 +51,9 @@ from course_lib.control.rollout import draw_noise
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import Motion
 
-__all__ = ["DesignConfig", "design_motion", "default_prior", "prepare_start", "stance_plane", "solve_windows"]
+SPACES = ("noise", "frames")
+
+__all__ = ["SPACES", "DesignConfig", "design_motion", "default_prior", "prepare_start", "stance_plane", "solve_windows"]
 
 
 @dataclass
@@ -70,6 +72,7 @@ class DesignConfig:
     progress: str = "arc"  # "arc": arc length gained along the curve, paced to end on time; "net": net speed
     use_pso: bool = True  # False: L-BFGS from the best candidate alone (a baseline)
     use_lbfgs: bool = True  # False: PSO (or the best candidate) alone (a baseline)
+    space: str = "noise"  # the variables: "noise" (the sampler's eps, Gumbel draws, d: ours) or "frames" (the paper's)
     retry_control: float | None = 50.0  # a window whose control energy ends above this is searched again ...
     retry_factor: int = 4  # ... from this many times the candidates (fresh samples); the better end is kept
 
@@ -189,6 +192,9 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
     with ``left`` frames still to make
     -> (raw frames (total, D), info)."""
     t0 = time.perf_counter()
+    if config.space not in SPACES:
+        raise ValueError(f"DesignConfig.space must be one of {SPACES}, got {config.space!r}")
+    solve = _solve_window_frames if config.space == "frames" else _solve_window
     g = torch.Generator().manual_seed(seed)
     skel, plane = start_m.skeleton, stance_plane(start_m)
     prev, init = raw0.double(), init1
@@ -196,12 +202,12 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
     out, carry, windows, done = [], None, [], 0
     while done < total:
         energy = WindowEnergy(prior, skel, prev, state, init, control(init, total - done), plane)
-        raw, u, hist = _solve_window(energy, carry, config, g)
+        raw, u, hist = solve(energy, carry, config, g)
         if config.retry_control is not None and hist["terms"]["control"] > config.retry_control:
             from dataclasses import replace
 
             wide = replace(config, candidates=config.candidates * config.retry_factor)  # fresh, more samples
-            again = _solve_window(energy, None, wide, g)
+            again = solve(energy, None, wide, g)
             if again[2]["terms"]["total"] < hist["terms"]["total"]:
                 raw, u, hist = again
             hist["retried"] = True
@@ -255,3 +261,50 @@ def _solve_window(energy: WindowEnergy, carry, config: DesignConfig, g: torch.Ge
         raw, terms = energy.sampled(eps, gum, d, b)
     return raw, (eps, gum, d), {"pso": pso_hist, "lbfgs": lb_hist,
                                 "terms": {k: float(v) for k, v in terms.items()}}
+
+
+def _solve_window_frames(energy: WindowEnergy, carry, config: DesignConfig, g: torch.Generator):
+    """The same search as `_solve_window` over the paper's variables: the window's frames s (their free columns,
+    normalised) and d.  The candidates are RNN samples' frames; the stance bits are the best candidate's, held
+    fixed (a bit is not differentiable).  -> (raw (1, T, D), (frames, bits, d), {"pso", "lbfgs", "terms"}).
+
+    carry: the previous window's unused (frames, bits, d); the first candidate starts with those frames."""
+    prior, T, C, b = energy.prior, config.window, config.candidates, config.sample_bias
+    eps0, g0 = draw_noise(C, T, prior, g)
+    with torch.no_grad():
+        raw0, terms0 = energy.sampled(eps0, g0, None, b)  # (C, T, D) candidate frames
+    raw0 = raw0.clone()
+    if carry is not None:
+        n = carry[0].shape[1]
+        raw0[0, :n] = carry[0][0]
+    bits = raw0[int(terms0["total"].argmin()), None, :, prior.contact_cols]  # (1, T, 2)
+    z0 = energy.to_z(raw0)  # (C, T, F)
+    F = z0.shape[-1]
+
+    def loss(x):  # PSO particles (P, T F) -> (P,) eq. (19) with d = 0
+        z = x.reshape(len(x), T, F)
+        return energy.terms(energy.frames(z, bits.expand(len(x), -1, -1)))["total"]
+
+    x0 = z0.reshape(C, -1)
+    if config.use_pso:
+        res = pso(loss, x0, config.pso, g)
+        best, pso_hist = res.best.reshape(1, T, F), res.history
+    else:
+        with torch.no_grad():
+            f = loss(x0)
+        best, pso_hist = x0[int(f.argmin())].reshape(1, T, F), [float(f.min())]
+    z, d = best.clone(), torch.zeros(1, T, prior.dim, dtype=torch.float64)
+    lb_hist = []
+    if config.use_lbfgs:
+        def total(z_, dd):
+            return energy.terms(energy.frames(z_, bits), dd)["total"].sum()
+        (z, d), lb_hist = minimise_lbfgs(total, [z, d], config.lbfgs)
+        with torch.no_grad():
+            e_end = float(total(z, d))
+        if not e_end <= pso_hist[-1]:  # L-BFGS can end above its start here too: keep the better end
+            z, d = best.clone(), torch.zeros_like(d)
+    with torch.no_grad():
+        raw = energy.frames(z, bits)
+        terms = energy.terms(raw, d)
+    return raw, (raw, bits, d), {"pso": pso_hist, "lbfgs": lb_hist,
+                                 "terms": {k: float(v) for k, v in terms.items()}}
