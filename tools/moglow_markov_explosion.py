@@ -1,6 +1,8 @@
 """Lesson 06 side experiment (issue 17): why the Markov MoGlow explodes in 6 of 16 of its 20-s samples.
 
     python tools/moglow_markov_explosion.py --out tools/moglow_markov_explosion_results.json   # ~3 min, one core
+    python tools/moglow_markov_explosion.py --checkpoints /tmp/mg6300 \\
+        --out tools/moglow_longer_explosion_results.json   # tools/moglow_longer_training.py's models
 
 The shipped checkpoints only (nothing is trained, nothing is written to checkpoints/).  The protocol is
 `E.long_samples`' (seed 0 is the notebook's 16 samples), repeated over SEEDS; one condition changes one thing:
@@ -23,6 +25,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -195,6 +198,8 @@ def fixed_gains(model) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True)
+    parser.add_argument("--checkpoints", type=Path, default=E.CHECKPOINTS,
+                        help="the models' folder (default: the shipped checkpoints/)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     t0 = time.perf_counter()
@@ -208,7 +213,7 @@ def main() -> None:
            "train_pose_max_abs": in_range,
            "seams": E.long_program(data, 0, N, SECONDS)["seams"], "models": {}}
     for name in MODELS:
-        model = E.load_model(name)
+        model = E.load_model(name, args.checkpoints)
         counts, rows = {}, []
         for seed in SEEDS:
             seams = E.long_program(data, seed, N, SECONDS)["seams"]
