@@ -542,26 +542,32 @@ def test_denoise_problem_data_terms_known_answers(prior, walk):
 
 
 def test_denoise_starts_where_it_is_told(prior, walk):
-    """With no L-BFGS evaluations denoise returns its start: the input low-passed at start_cutoff_hz by
-    default, the input itself with None (or when the input is too short to filter), ``start`` when given."""
+    """With no L-BFGS evaluations denoise returns its start: the input with its held frames interpolated and
+    low-passed at start_cutoff_hz by default, only interpolated with None (or when the input is too short to
+    filter), the input itself with held_frames "keep" too, ``start`` when given."""
     from dataclasses import replace
 
     from course_lib.control import DenoiseConfig, denoise
+    from course_lib.control.dropouts import fill_held
     from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
     from course_lib.representations import encode_state_features
     from course_lib.synthetic import add_noise
 
-    noisy = add_noise(walk, seed=0, spike_rate=0.0)
+    noisy = add_noise(walk, seed=0, spike_rate=0.0, drop_rate=0.1)
+    assert noisy.meta["noise"]["dropped"].any()  # so that the start's interpolation is tested
     cfg = DenoiseConfig(iterations=0, initial_state_steps=0)
 
     def err(a, b):  # the variables' columns (not the fixed ones, which the prior holds at the data's constants)
         return float(np.abs(encode_state_features(a)[1:, prior.free] - encode_state_features(b)[1:, prior.free]).max())
-    assert err(denoise(noisy, prior=prior, config=cfg), lowpass(noisy, "butter", cfg.start_cutoff_hz)) < 1e-9
-    assert err(denoise(noisy, prior=prior, config=replace(cfg, start_cutoff_hz=None)), noisy) < 1e-9
+    start = lowpass(fill_held(noisy), "butter", cfg.start_cutoff_hz)  # held frames interpolated, then low-passed
+    assert err(denoise(noisy, prior=prior, config=cfg), start) < 1e-9
+    assert err(denoise(noisy, prior=prior, config=replace(cfg, start_cutoff_hz=None)), fill_held(noisy)) < 1e-9
+    keep = replace(cfg, start_cutoff_hz=None, held_frames="keep")
+    assert err(denoise(noisy, prior=prior, config=keep), noisy) < 1e-9  # the input itself
     short = noisy[:BUTTER_MIN_FRAMES - 1]
-    assert err(denoise(short, prior=prior, config=cfg), short) < 1e-9
+    assert err(denoise(short, prior=prior, config=cfg), fill_held(short)) < 1e-9
     assert err(denoise(noisy, prior=prior, config=cfg, start=walk), walk) < 1e-9
     assert err(noisy, walk) > 0.01  # the starts differ
-    assert err(noisy, lowpass(noisy, "butter", cfg.start_cutoff_hz)) > 0.01
+    assert err(noisy, start) > 0.01
     with pytest.raises(ValueError, match="frames"):
         denoise(noisy, prior=prior, config=cfg, start=walk[:10])

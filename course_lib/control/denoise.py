@@ -180,9 +180,9 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
     """A noisy motion (at the RNN's 30 fps, >= 3 frames) -> the filtered motion, same skeleton and length.
 
     seed: torch's seed for the run (the solver is deterministic; kept for a uniform interface).
-    start: the motion the solver starts from (same length and skeleton; None: the input low-passed at
-    config.start_cutoff_hz, or the input itself where that is None or the input is too short to filter,
-    under lowpass.BUTTER_MIN_FRAMES frames)."""
+    start: the motion the solver starts from (same length and skeleton; None: the input, its held frames
+    interpolated if config.held_frames is "fill", then low-passed at config.start_cutoff_hz unless that is None or
+    the input is too short to filter, under lowpass.BUTTER_MIN_FRAMES frames)."""
     from course_lib.control.dropouts import fill_held
     from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
     from course_lib.representations import encode_state_features
@@ -194,10 +194,13 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
                                  ("held_frames", config.held_frames, HELD_FRAMES)):
         if value not in allowed:
             raise ValueError(f"denoise: {name} must be one of {allowed}, got {value!r}")
-    if start is None and config.start_cutoff_hz is not None and len(motion) >= BUTTER_MIN_FRAMES:
-        start = lowpass(fill_held(motion) if config.held_frames == "fill" else motion, "butter",
-                        config.start_cutoff_hz)
-    elif start is not None and len(start) != len(motion):
+    if start is None:
+        base = fill_held(motion) if config.held_frames == "fill" else motion
+        if config.start_cutoff_hz is not None and len(motion) >= BUTTER_MIN_FRAMES:
+            start = lowpass(base, "butter", config.start_cutoff_hz)
+        elif base is not motion:
+            start = base
+    elif len(start) != len(motion):
         raise ValueError(f"denoise: start must have the input's {len(motion)} frames, got {len(start)}")
     problem = denoise_problem(motion, prior, config, start if config.first_frame == "start" else None)
     config, prior, energy, bits = problem.config, problem.prior, problem.energy, problem.bits
