@@ -416,7 +416,7 @@ def test_lowpass_ignores_quaternion_signs_and_names_bad_settings(walk):
 def test_held_frames_found_exactly_and_filled_between_their_neighbours(walk):
     from dataclasses import replace
 
-    from course_lib.control.dropouts import fill_held, held_frames
+    from course_lib.control.dropouts import dropped_mask, fill_held, held_frames
     from course_lib.synthetic import add_noise
 
     assert not held_frames(walk).any()  # real (generated) motion: no two frames alike
@@ -435,6 +435,14 @@ def test_held_frames_found_exactly_and_filled_between_their_neighbours(walk):
     assert e < 0.5 * np.linalg.norm(noisy.positions() - walk.positions(), axis=-1)[held].mean()
     tail = replace(walk[:4], rotations=np.repeat(walk.rotations[:1], 4, 0), root_positions=np.zeros((4, 3)))
     assert np.array_equal(fill_held(tail).root_positions, tail.root_positions)  # a run at the end keeps holding
+    assert held_frames(tail)[1:].all() and not dropped_mask(tail).any()  # a static clip keeps all its data
+    rot = walk.rotations[:30].copy()
+    rot[5:25] = rot[4]  # a 20-frame stillness: longer than MAX_RUN, a real pose, not a dropout
+    root = walk.root_positions[:30].copy()
+    root[5:25] = root[4]
+    still = replace(walk[:30], rotations=rot, root_positions=root)
+    assert held_frames(still)[5:25].all() and not dropped_mask(still).any()
+    assert dropped_mask(still, max_run=20)[5:25].all()
     with pytest.raises(ValueError, match="Motion"):
         held_frames(walk.rotations)
 

@@ -30,7 +30,8 @@ Differs from the paper (which gives no sigmas, no start and no noise model beyon
   tools/control_denoise_floor.py).  The low-pass start is what a reader can compute instead.
 - Dropped frames.  A capture's lost frame holds the last good frame bit for bit (make_noisy does the same); such a
   frame is left out of eq. (25) (a missing observation, not a measurement of a frozen pose) and interpolated in
-  the start (``held_frames="fill"``).  Measured on the tuning clips: 1.48 -> 1.14 cm mean joint error.
+  the start (``held_frames="fill"``; runs of at most dropouts.MAX_RUN frames with a good frame after them: a longer
+  stillness is real).  Measured on the tuning clips: 1.48 -> 1.14 cm mean joint error.
 - The spikes (1 % of frames, 0.6 rad) are not modelled: a Gaussian data term follows them partly.
 """
 
@@ -163,9 +164,9 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
     c_root = torch.from_numpy(motion.root_positions[1:])[None]  # (1, T-1, 3)
     problem = DenoiseProblem(prior, c, c_root, None, c[:, 1:, prior.contact_cols], state, config)
     if config.held_frames == "fill":
-        from course_lib.control.dropouts import held_frames
+        from course_lib.control.dropouts import dropped_mask
 
-        problem.weight = torch.from_numpy(~held_frames(motion)[1:]).double()[None, :, None]
+        problem.weight = torch.from_numpy(~dropped_mask(motion)[1:]).double()[None, :, None]
 
     def data_term(xz, yaw, raw):  # eq. (25)
         return sum(problem.data_terms(raw).values())
