@@ -579,3 +579,27 @@ def test_denoise_starts_where_it_is_told(prior, walk):
     assert err(noisy, start) > 0.01
     with pytest.raises(ValueError, match="frames"):
         denoise(noisy, prior=prior, config=cfg, start=walk[:10])
+
+
+def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
+    """Given offline_eval's rows, equal_time_eval runs only the two scaled baselines per case, with budgets
+    scaled by ours' time over theirs at the default budget; without them it measures those first."""
+    from course_lib.experiments import control as X
+
+    calls = []
+
+    def fake_case(name, gait, method, seed=0, scale=1.0):
+        calls.append((method, round(scale, 6)))
+        return None, {"ours": 12.0, "lbfgs": 6.0, "best_of_n": 3.0}[method] * scale
+
+    monkeypatch.setattr(X, "offline_case", fake_case)
+    monkeypatch.setattr(X, "measure_design", lambda m, c: {"end_distance_m": 0.0})
+    rows = {f"line/walk/{m}": {"seconds": t, "end_distance_m": 0.1, "root_xz": [[0, 0]]}
+            for m, t in (("ours", 12.0), ("lbfgs", 6.0), ("best_of_n", 3.0))}
+    out = X.equal_time_eval(cases=(("line", "walk"),), progress=None, offline=rows)
+    assert calls == [("lbfgs", 2.0), ("best_of_n", 4.0)]
+    assert out["line/walk"]["ours"] == {"seconds": 12.0, "end_distance_m": 0.1}
+    assert out["line/walk"]["lbfgs"]["budget_scale"] == 2.0 and out["line/walk"]["best_of_n"]["seconds"] == 12.0
+    calls.clear()
+    X.equal_time_eval(cases=(("line", "walk"),), progress=None)
+    assert calls == [("ours", 1.0), ("lbfgs", 1.0), ("lbfgs", 2.0), ("best_of_n", 1.0), ("best_of_n", 4.0)]

@@ -156,15 +156,28 @@ def offline_eval(seed: int = 0, curves=CURVES, gaits=("walk", "run"), methods=ME
     return rows
 
 
-def equal_time_eval(seed: int = 0, cases=(("s_curve", "walk"), ("line", "run")), progress=print) -> dict:
+def equal_time_eval(seed: int = 0, cases=(("s_curve", "walk"), ("line", "run")), progress=print,
+                    offline: dict | None = None) -> dict:
     """Ours against L-BFGS alone and best-of-N given (about) ours' wall time: their budgets are scaled by the
-    ratio of ours' time to theirs at the default budget (measured on the same case)."""
+    ratio of ours' time to theirs at the default budget (measured on the same case).
+
+    offline: `offline_eval`'s rows of the same run and seed; ours and the default-budget timings are taken from
+    them (the same motions, already measured) instead of being run again."""
     out = {}
     for name, gait in cases:
-        m, t_ours = offline_case(name, gait, "ours", seed)
-        row = {"ours": {**measure_design(m, curve(name)), "seconds": t_ours}}
+        key = f"{name}/{gait}"
+        if offline is not None and f"{key}/ours" in offline:
+            done = offline[f"{key}/ours"]
+            row = {"ours": {k: v for k, v in done.items() if k != "root_xz"}}
+            t_ours = done["seconds"]
+        else:
+            m, t_ours = offline_case(name, gait, "ours", seed)
+            row = {"ours": {**measure_design(m, curve(name)), "seconds": t_ours}}
         for method in ("lbfgs", "best_of_n"):
-            _, t1 = offline_case(name, gait, method, seed)
+            if offline is not None and f"{key}/{method}" in offline:
+                t1 = offline[f"{key}/{method}"]["seconds"]
+            else:
+                _, t1 = offline_case(name, gait, method, seed)
             scale = t_ours / max(t1, 1e-3)
             m, t = offline_case(name, gait, method, seed, scale=scale)
             row[method] = {**measure_design(m, curve(name)), "seconds": t, "budget_scale": scale}
@@ -350,7 +363,8 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
         out = dict(kept)
         times, by = dict(out.get("seconds", {})), dict(out.get("measured_by", {}))
     runs = {"offline": lambda: offline_eval(seed, progress=progress),
-            "equal_time": lambda: equal_time_eval(seed, progress=progress),
+            "equal_time": lambda: equal_time_eval(  # reuses the offline rows measured in this run
+                seed, progress=progress, offline=out["offline"] if not only or "offline" in only else None),
             "online": lambda: {g: online_run(g, seed) for g in ("walk", "run")},
             "denoise": lambda: denoise_eval(seed, progress=progress),
             "initial_state": initial_state_eval}
