@@ -603,3 +603,26 @@ def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
     calls.clear()
     X.equal_time_eval(cases=(("line", "walk"),), progress=None)
     assert calls == [("ours", 1.0), ("lbfgs", 1.0), ("lbfgs", 2.0), ("best_of_n", 1.0), ("best_of_n", 4.0)]
+
+
+def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):
+    """tools/control_denoise_skate.py: its pairs are foot_skate's pairs (the same mean speed), split into the clean
+    motion's stance and swing, which add up."""
+    import importlib.util
+    from pathlib import Path
+
+    from course_lib.evaluation import foot_skate
+    from course_lib.synthetic import add_noise
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "control_denoise_skate.py"
+    spec = importlib.util.spec_from_file_location("control_denoise_skate", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    noisy = add_noise(walk, seed=1)
+    for out in (walk, noisy):
+        rows = tool.split(out, walk, noisy)
+        assert rows["all"]["speed_sum"] / rows["all"]["pairs"] == pytest.approx(foot_skate([out]), rel=1e-9)
+        parts = ("clean stance", "clean swing")
+        assert sum(rows[k]["pairs"] for k in parts) == rows["all"]["pairs"]
+        assert sum(rows[k]["speed_sum"] for k in parts) == pytest.approx(rows["all"]["speed_sum"], rel=1e-9)
+    assert foot_skate([noisy]) > 10 * foot_skate([walk])  # the noise makes the feet skate
