@@ -15,7 +15,6 @@ import numpy as np
 import torch
 
 from course_lib.control import DenoiseConfig, denoise
-from course_lib.control.starts import held_out_clips
 from course_lib.datasets import _clip_seed
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
@@ -31,7 +30,7 @@ def main() -> None:
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    clean = [m for g in ("walk", "run") for m in held_out_clips(g)[:4]]  # as denoise_eval
+    clean = C.denoise_clips()  # as denoise_eval
     out = {"command": f"python tools/control_denoise_ablation.py --out {args.out}", "clips": len(clean), "parts": {}}
     for name, kw in PARTS.items():
         noisy = [add_noise(m, seed=_clip_seed(1, i), **kw) for i, m in enumerate(clean)]  # denoise_eval's seeds

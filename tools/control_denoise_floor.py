@@ -31,7 +31,6 @@ from scipy.signal import medfilt
 
 from course_lib.control import DenoiseConfig, denoise
 from course_lib.control.denoise import denoise_problem
-from course_lib.control.starts import held_out_clips
 from course_lib.datasets import _clip_seed
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
@@ -122,7 +121,7 @@ def main() -> None:
     parser.add_argument("--only", nargs="*", help="condition names (default: all)")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    clean = [m for g in ("walk", "run") for m in held_out_clips(g)[:4]]  # as denoise_eval
+    clean = C.denoise_clips()  # as denoise_eval
     kw = NOISE[args.inputs]
     noisy = clean if kw is None else [add_noise(m, seed=_clip_seed(1, i), **kw) for i, m in enumerate(clean)]
     path = Path(args.out)

@@ -19,8 +19,8 @@ import numpy as np
 import torch
 
 from course_lib.control import denoise
-from course_lib.control.starts import held_out_clips
 from course_lib.datasets import noisy_copies
+from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 from course_lib.motion import CONTACT_HEIGHT
 
@@ -55,7 +55,7 @@ def main() -> None:
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    clean = [m for g in ("walk", "run") for m in held_out_clips(g)[:4]]  # as denoise_eval
+    clean = C.denoise_clips()  # as denoise_eval
     noisy = noisy_copies(clean, 1)
     per = [split(denoise(n, seed=0), c, n) for n, c in zip(noisy, clean, strict=True)]
     clean_self = [split(c, c, n) for n, c in zip(noisy, clean, strict=True)]

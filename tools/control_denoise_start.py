@@ -25,7 +25,6 @@ import torch
 
 from course_lib.control import DenoiseConfig, denoise
 from course_lib.control.lowpass import lowpass
-from course_lib.control.starts import held_out_clips
 from course_lib.datasets import noisy_copies
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
@@ -76,7 +75,7 @@ def main() -> None:
     parser.add_argument("--only", nargs="*", help="row names (default: all)")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    clean = [m for g in ("walk", "run") for m in held_out_clips(g)[4:8]]
+    clean = C.denoise_clips(first=4)  # the tuning clips
     noisy = noisy_copies(clean, 1)  # denoise_eval's noise seeds (seed 0 + 1)
 
     def score(outs):

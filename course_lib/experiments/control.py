@@ -28,7 +28,7 @@ import torch
 
 from course_lib.reproduce import CHECKPOINTS, rounded
 
-__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run",
+__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "denoise_clips",
            "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
            "recorded_results"]
 
@@ -271,6 +271,14 @@ def refine_alone(motions: list, checkpoints: Path = CHECKPOINTS) -> list:
     return out
 
 
+def denoise_clips(first: int = 0, per_gait: int = 4) -> list:
+    """The held-out walks then runs the denoising is measured on: clips first .. first + per_gait - 1 of each gait
+    (0-3: the scored clips of `denoise_eval`; 4-7: the tuning clips of tools/control_denoise_start.py)."""
+    from course_lib.control.starts import held_out_clips
+
+    return [m for g in ("walk", "run") for m in held_out_clips(g)[first:first + per_gait]]
+
+
 def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict:
     """Held-out walks and runs with make_noisy.py's noise: noisy input, ours, lesson 03's refiner alone, the best
     Butterworth and the best Savitzky-Golay (best mean joint error over these clips; control/lowpass.py), each
@@ -279,10 +287,9 @@ def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict
     from course_lib.control import denoise
     from course_lib.control.dropouts import fill_held
     from course_lib.control.lowpass import lowpass
-    from course_lib.control.starts import held_out_clips
     from course_lib.datasets import noisy_copies
 
-    clean = [m for g in ("walk", "run") for m in held_out_clips(g)[:clips_per_gait]]
+    clean = denoise_clips(0, clips_per_gait)
     noisy = noisy_copies(clean, seed + 1)
     per = {"noisy": [_denoise_scores(n, c) for n, c in zip(noisy, clean, strict=True)]}
     t0 = time.perf_counter()
