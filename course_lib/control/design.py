@@ -30,6 +30,8 @@ sigma_fit^2 = 0.01 m^2 (the paper: 0.5): against our prior's scale 0.5 let a 4-s
 from it on average, 0.01 kept it to 0.09 m (seed 0). The number of candidates, PSO and L-BFGS iterations are not
 given; ours are in `DesignConfig`. The variables are the RNN sampler's noise (eps, Gumbel) and d, not the frames
 themselves (rollout.py says why); L-BFGS holds the Gumbel variables (the mixture components) fixed.
+``DesignConfig(space="frames")`` searches the paper's variables instead (tools/control_frame_space.py measures both:
+over frames L-BFGS alone misses the curve's end by metres, and every frame-space search ends farther than ours).
 """
 
 from __future__ import annotations
