@@ -7,7 +7,9 @@ These are set before any test module imports pyvista or matplotlib.
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -21,6 +23,20 @@ for _name, _value in {
     "MPLBACKEND": "Agg",
 }.items():
     os.environ.setdefault(_name, _value)
+
+
+def load_module(path: Path):
+    """A script (tools/*.py, data_scripts/*.py: folders that are not packages) as a module."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[path.stem] = module  # dataclasses in the script look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def load_tool(name: str):
+    """tools/<name>.py as a module (test modules import it: ``from conftest import load_tool``)."""
+    return load_module(REPO_ROOT / "tools" / f"{name}.py")
 
 
 def find_shared_dir(start: Path = REPO_ROOT) -> Path:

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from conftest import load_tool
 
 from course_lib.control import energy as E
 from course_lib.control.kinematics import heading_yaw, integrate_root, toe_positions, world_positions
@@ -608,16 +609,11 @@ def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
 def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):
     """tools/control_denoise_skate.py: its pairs are foot_skate's pairs (the same mean speed), split into the clean
     motion's stance and swing, which add up."""
-    import importlib.util
-    from pathlib import Path
 
     from course_lib.evaluation import foot_skate
     from course_lib.synthetic import add_noise
 
-    path = Path(__file__).resolve().parents[1] / "tools" / "control_denoise_skate.py"
-    spec = importlib.util.spec_from_file_location("control_denoise_skate", path)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool("control_denoise_skate")
     noisy = add_noise(walk, seed=1)
     for out in (walk, noisy):
         rows = tool.split(out, walk, noisy)

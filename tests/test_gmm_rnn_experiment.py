@@ -4,6 +4,7 @@ continuations, the Fig. 12 stand-in rows (GAN2 + contacts), the long-generation 
 import numpy as np
 import pytest
 import torch
+from conftest import load_tool
 
 from course_lib.datasets import WindowDataset, generate_locomotion_set
 from course_lib.experiments import gmm_rnn as X
@@ -78,17 +79,6 @@ def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
     assert hist.num_steps == 3 and ft.num_steps == 4 and not model.training
     assert model.config.self_feed == (1, 4) and model.config.residual
     assert all(np.isfinite(hist.step["loss"] + ft.step["loss"]))
-
-
-def load_tool(name: str):
-    """tools/<name>.py as a module (the tools folder is not a package)."""
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).resolve().parents[1] / "tools" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_recipe_sweep_runs_one_variant_end_to_end(setup):

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from conftest import load_tool
 
 from course_lib.models.baselines import AttributeRnn, AttributeRnnConfig
 from course_lib.models.hvrnn import (
@@ -307,14 +308,9 @@ def test_fixed_dofs_of_the_data_are_set_in_every_generator_output():
 
 def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     """tools/hvrnn_sweep.py (the search behind the shipped training length): a few steps, every number."""
-    import importlib.util
     import json
-    from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "tools" / "hvrnn_sweep.py"
-    spec = importlib.util.spec_from_file_location("hvrnn_sweep", path)
-    sweep = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(sweep)
+    sweep = load_tool("hvrnn_sweep")
     out = tmp_path / "results.json"
     assert sweep.main(["--out", str(out), "--only", "nl_1200", "--smoke"]) == 0
     res = json.loads(out.read_text())["results"]["nl_1200"]
@@ -322,3 +318,11 @@ def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     assert res["reconstruction_FID"] >= 0 and res["FID"] >= 0 and 1 <= res["IS"] <= 8 and 0 <= res["C2ST"] <= 1
     with pytest.raises(SystemExit):  # refuses to overwrite a results file
         sweep.main(["--out", str(out), "--only", "nl_1200", "--smoke"])
+    with pytest.raises(SystemExit):  # --merge needs a file to add to
+        sweep.main(["--out", str(tmp_path / "none.json"), "--only", "nl_1200", "--smoke", "--merge"])
+    assert sweep.main(["--out", str(out), "--only", "proposed_1200_seed2", "--smoke", "--merge"]) == 0
+    merged = json.loads(out.read_text())
+    assert merged["results"]["nl_1200"] == res  # kept
+    assert merged["results"]["proposed_1200_seed2"]["seed"] == 2
+    assert merged["added_by"] == {"proposed_1200_seed2": "python tools/hvrnn_sweep.py --out " + str(out)
+                                  + " --only proposed_1200_seed2 --smoke --merge"}

@@ -4,6 +4,7 @@ import math
 
 import pytest
 import torch
+from conftest import load_tool
 from torch.nn import functional as F
 
 from course_lib.models.vae import gaussian_kl
@@ -318,14 +319,9 @@ def test_reproduce_registers_vae_lstm_and_keeps_old_names():
 
 def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     """tools/vae_lstm_sweep.py (the comparison behind the shipped recipe): one variant, 3 steps, every number."""
-    import importlib.util
     import json
-    from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "tools" / "vae_lstm_sweep.py"
-    spec = importlib.util.spec_from_file_location("vae_lstm_sweep", path)
-    sweep = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(sweep)
+    sweep = load_tool("vae_lstm_sweep")
     out = sweep.run(["paper_free_bits"], smoke=True, out_path=tmp_path / "r.json")
     res = json.loads((tmp_path / "r.json").read_text())["variants"]["paper_free_bits"]
     assert res == out["variants"]["paper_free_bits"] and res["steps"] == 3

@@ -1,12 +1,14 @@
 """Lesson 05's recipe search: train variants of one generator and score each on free-running samples and on
 teacher-forced reconstructions of the held-out sequences (FID, IS, action accuracy, C2ST).
 
-    python tools/hvrnn_sweep.py --out tools/hvrnn_sweep_results.json [--only NAME ...] [--smoke]
+    python tools/hvrnn_sweep.py --out tools/hvrnn_sweep_results.json [--only NAME ...] [--merge] [--smoke]
 
 Each variant is a base model of `experiments.hvrnn.model_specs`, a number of steps (the schedules scale with
 it) and config overrides (VARIANTS).  The evaluation is lighter than the shipped one: one generation seed,
 50 samples per action x style.  This is the search behind the shipped training length; checkpoints/ come
-from `python -m course_lib.reproduce hvrnn` only.
+from `python -m course_lib.reproduce hvrnn` only.  With --merge the variants run are added to (or replace their
+own rows in) an existing results file, whose other rows are kept, and the command that made each added row is
+recorded under "added_by".
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ VARIANTS = {  # name: (base model, optimiser steps, config overrides, training s
     "nl_1200": ("hvrnn_nl", 1200, {}, 0),
     "proposed_1200_seed1": ("hvrnn_proposed", 1200, {}, 1),  # is Proposed vs NL a training-seed accident?
     "nl_1200_seed1": ("hvrnn_nl", 1200, {}, 1),
+    "proposed_1200_seed2": ("hvrnn_proposed", 1200, {}, 2),  # a third training seed of each
+    "nl_1200_seed2": ("hvrnn_nl", 1200, {}, 2),
 }
 
 
@@ -76,13 +80,27 @@ def main(argv=None) -> int:
     parser.add_argument("--only", nargs="*", choices=sorted(VARIANTS), help="run only these variants")
     parser.add_argument("--smoke", action="store_true", help="a few steps on CI-sized data (tests)")
     parser.add_argument("--force", action="store_true", help="overwrite --out")
+    parser.add_argument("--merge", action="store_true", help="add the variants run to an existing --out, keeping its "
+                                                             "other rows")
     args = parser.parse_args(argv)
-    if args.out.exists() and not args.force:
-        parser.error(f"{args.out} exists; pass --force to overwrite it")
+    if args.merge and not args.out.exists():
+        parser.error(f"--merge needs an existing {args.out}")
+    if args.out.exists() and not (args.force or args.merge):
+        parser.error(f"{args.out} exists; pass --force to overwrite it or --merge to add to it")
+    command = "python tools/hvrnn_sweep.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    n_per = 2 if args.smoke else 50
+    if args.merge:
+        record = json.loads(args.out.read_text())
+        if record["n_per_attribute"] != n_per:
+            parser.error(f"{args.out} was scored on {record['n_per_attribute']} samples per attribute, not {n_per}")
+    else:
+        record = {"command": command, "n_per_attribute": n_per, "results": {}}
     torch.set_num_threads(1)
     results = run(args.only or list(VARIANTS), smoke=args.smoke)
-    args.out.write_text(json.dumps({"command": "python tools/hvrnn_sweep.py " + " ".join(argv or sys.argv[1:]),
-                                    "n_per_attribute": 2 if args.smoke else 50, "results": results}, indent=1) + "\n")
+    record["results"].update(results)
+    if args.merge:
+        record.setdefault("added_by", {}).update({name: command for name in results})
+    args.out.write_text(json.dumps(record, indent=1) + "\n")
     return 0
 
 
