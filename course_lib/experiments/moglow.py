@@ -28,6 +28,7 @@ lose the same information.  Nothing runs at import time.
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import time
 from pathlib import Path
@@ -46,6 +47,8 @@ TAU = 10  # history frames (0.5 s)
 STEPS = 5000  # optimiser steps per model (~27 epochs of the 5920 augmented training windows; ~10 min on one core)
 BATCH = 32
 LR = 1e-3  # the paper: 1e-4 with a Noam schedule over 80k steps; ours is a short run
+LR_DECAY_FROM = None  # fraction of the steps after which the LR falls (cosine) to LR_FLOOR x LR; None = constant
+LR_FLOOR = 0.01
 GRAD_CLIP = 5.0  # StyleGestures' max_grad_clip
 EVAL_SEEDS = 3  # generation seeds of the distribution scores
 MIN_DISTRIBUTION_CLIPS = 20  # FID / C2ST need at least this many held-out clips
@@ -133,15 +136,32 @@ def config_for(name: str, pose_dim: int):
     return MoGlowConfig.cpu(pose_dim, 3, TAU, **MODELS[name])
 
 
-def train_model(name: str, data: MoGlowData, steps: int = STEPS, seed: int = 0, progress: bool = False):
-    """-> (model, History) of one variant."""
+def lr_factor(step: int, steps: int, decay_from: float | None = LR_DECAY_FROM, floor: float = LR_FLOOR) -> float:
+    """The learning rate of optimiser step `step` (0-based) of `steps`, as a fraction of LR: 1 until
+    ``decay_from * steps``, then a half cosine down to `floor` at the last step (None: 1 throughout)."""
+    if decay_from is None:
+        return 1.0
+    start = decay_from * steps
+    if step <= start:
+        return 1.0
+    t = min(1.0, (step - start) / max(1.0, steps - 1 - start))
+    return floor + (1 - floor) * 0.5 * (1 + math.cos(math.pi * t))
+
+
+def train_model(name: str, data: MoGlowData, steps: int = STEPS, seed: int = 0, progress: bool = False,
+                decay_from: float | None = LR_DECAY_FROM):
+    """-> (model, History) of one variant (the LR schedule of `lr_factor`, set before every step)."""
     from course_lib.models.moglow import MoGlow
     from course_lib.training import fit, seed_everything
 
+    def schedule(info):  # called after step info.step (1-based): set the LR of the next one
+        for group in info.optimizer.param_groups:
+            group["lr"] = LR * lr_factor(info.step, steps, decay_from)
+
     seed_everything(seed)
     model = MoGlow(config_for(name, data.pose_dim))
-    hist = fit(model, batches(data.train, BATCH, seed), steps=steps, lr=LR, grad_clip=GRAD_CLIP,
-               progress=progress, desc=name)
+    hist = fit(model, batches(data.train, BATCH, seed), steps=steps, lr=LR * lr_factor(0, steps, decay_from),
+               grad_clip=GRAD_CLIP, progress=progress, desc=name, callback=schedule if decay_from is not None else None)
     return model.eval(), hist
 
 
