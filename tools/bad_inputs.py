@@ -381,12 +381,14 @@ CASES = [
 
 
 def outcome(case: Case) -> tuple[str, str]:
-    """-> (exception class or "handled", message or description), run in a fresh temporary folder."""
+    """-> (exception class or "handled", message or description), run in a fresh temporary folder (named <tmp> in
+    the message)."""
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            return "handled", case.run(Path(tmp))
+            kind, message = "handled", case.run(Path(tmp))
         except Exception as err:  # noqa: BLE001 - the outcome is what we report
-            return type(err).__name__, str(err)
+            kind, message = type(err).__name__, str(err)
+    return kind, message.replace(str(Path(tmp).resolve()), "<tmp>").replace(tmp, "<tmp>")
 
 
 def table(rows: list[tuple[Case, str, str]]) -> str:
