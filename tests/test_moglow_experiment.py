@@ -139,3 +139,19 @@ def test_exploded_counts_nan_and_values_beyond_blow_up():
     poses[2, 4, 1] = float("nan")
     poses[3, 2, 1] = -(E.BLOW_UP - 0.1)  # inside
     assert E.exploded(poses).tolist() == [False, True, True, False]
+
+
+def test_lr_factor_is_constant_then_a_half_cosine_to_the_floor():
+    assert E.lr_factor(0, 5000, None) == 1.0 and E.lr_factor(4999, 5000, None) == 1.0
+    assert E.lr_factor(0, 5000, 0.6) == 1.0 and E.lr_factor(3000, 5000, 0.6) == 1.0  # constant until 60 %
+    assert E.lr_factor(4999, 5000, 0.6, floor=0.01) == pytest.approx(0.01)  # the last step at the floor
+    mid = E.lr_factor(3000 + 999.5, 5000, 0.6, floor=0.0)  # half-way through the decay: cos(pi / 2)
+    assert mid == pytest.approx(0.5)
+    values = [E.lr_factor(s, 5000, 0.6) for s in range(3000, 5000)]
+    assert all(a >= b for a, b in zip(values, values[1:]))  # never rises
+
+
+def test_train_model_sets_the_decayed_learning_rate(data):
+    _, hist = E.train_model("moglow", data, steps=4, seed=0, decay_from=0.5)
+    assert hist.lr[:3] == pytest.approx([E.LR, E.LR, E.LR * E.lr_factor(2, 4, 0.5)])
+    assert hist.lr[-1] == pytest.approx(E.LR * E.LR_FLOOR)

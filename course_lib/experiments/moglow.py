@@ -497,6 +497,7 @@ def train_moglow(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS, mode
         curve = list(hist.step["loss"])
         save_checkpoint(model, model.config, checkpoints / f"{name}.pt", command=COMMAND, overwrite=True,
                         metrics={"train_seconds": timings[name], "steps": len(curve), "batch": BATCH, "lr": LR,
+                                 "lr_decay_from": LR_DECAY_FROM, "lr_floor": LR_FLOOR,
                                  "final_nll_frame": round(hist.final("loss", 50), 4), "train_seed": seed,
                                  "train_sequences": len(data.train["poses"]),
                                  "curve": [round(float(v), 3) for v in curve[:: max(1, len(curve) // 150)]]})
