@@ -4,7 +4,10 @@ sampling noise that keeps the zero-control stepping ratio at 0.30?  The dropout 
 ``E.STEPS`` steps, seed 0, the same data, LR 1e-3 until ``--decay-from`` of the steps, then a half cosine to 1 % of
 it (``experiments.moglow.lr_factor``), into a folder of their own; then the held-out NLL per frame and the
 zero-control stepping speed over sampling seeds 0-4 (tools/moglow_zero_control_seeds.py's measure), beside the
-shipped models'.  Writes nothing to checkpoints/.
+models in checkpoints/ (run "shipped" of the results file).  Writes nothing to checkpoints/.  The recorded
+tools/moglow_lr_decay_results.json was made before the retraining, so its "shipped" run is the constant-LR models
+of commit 9b2cd86 (lesson 06 labels it so); the checkpoints/ of today are its "decayed" run, retrained by
+python -m course_lib.reproduce moglow.
 
     python tools/moglow_lr_decay.py --folder /tmp/mg_decay --out tools/moglow_lr_decay_results.json  # ~25 min
 """

@@ -163,8 +163,8 @@ def train_model(name: str, data: MoGlowData, steps: int = STEPS, seed: int = 0, 
 
     seed_everything(seed)
     model = MoGlow(config_for(name, data.pose_dim))
-    hist = fit(model, batches(data.train, BATCH, seed), steps=steps, lr=LR * lr_factor(0, steps, decay_from),
-               grad_clip=GRAD_CLIP, progress=progress, desc=name, callback=schedule if decay_from is not None else None)
+    hist = fit(model, batches(data.train, BATCH, seed), steps=steps, lr=LR, grad_clip=GRAD_CLIP, progress=progress,
+               desc=name, callback=schedule if decay_from is not None else None)  # lr_factor is 1 at step 0
     return model.eval(), hist
 
 
