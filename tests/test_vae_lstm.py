@@ -328,3 +328,59 @@ def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     assert res["overrides"] == {"generation_weight": 0.0, "free_bits": 0.5}
     assert set(res["vae_rows"]["table1"]) == {"VAE-LSTM", "VAE-LSTM (prior sample)", "VAE-LSTM (prior, every step)"}
     assert len(res["must_show"]) == 11 and res["latent"]["kl_per_dim_min"] >= 0
+
+
+def test_control_obs_std_narrows_the_control_channels_only():
+    """control_obs_std: the last 3 features get their own likelihood std; the 63 pose features keep obs_std."""
+    torch.manual_seed(6)
+    m = VaeLstm(tiny(control_obs_std=0.05)).eval()
+    x, x_hat = torch.randn(2, 16, 66), torch.randn(2, 16, 66)
+    std = torch.full((66,), m.config.obs_std)
+    std[63:] = 0.05
+    expect = -torch.distributions.Normal(x_hat, std).log_prob(x).sum() / 2
+    torch.testing.assert_close(m.nll(x, x_hat), expect, rtol=1e-5, atol=1e-3)
+    same = VaeLstm(tiny()).eval()
+    torch.testing.assert_close(same.nll(x, x_hat), -torch.distributions.Normal(x_hat, 0.2).log_prob(x).sum() / 2)
+    with pytest.raises(ValueError, match="control_obs_std"):
+        tiny(control_obs_std=0.0)
+
+
+def test_path_error_sources_known_answers():
+    """A stand-in model that copies the given control exactly has no path error; one whose yaw-rate output carries a
+    bias strays, and making the yaw rate exact removes all of it while the other two channels' copies remove none."""
+    from course_lib.datasets import WindowDataset
+    from course_lib.experiments.vae_lstm import DataSpec, generate_clips, path_error_sources, test_batch
+
+    ds = WindowDataset(generate_clips(DataSpec(n_clips=2), progress=False), "positions_control", length=240, fps=60)
+    x, _ = test_batch(ds)
+
+    class Copy:
+        yaw_bias = 0.0
+
+        def generate(self, control, generator=None):
+            i = next(k for k in range(len(x)) if torch.equal(x[k, :, -3:], control[0]))
+            out = x[i:i + 1].expand(len(control), -1, -1).clone()
+            out[..., -1] += self.yaw_bias
+            return out
+
+    exact = path_error_sources(Copy(), ds, n_samples=2)
+    assert exact["path_error_m"] < 1e-9 and max(exact["rms"].values()) == 0.0
+    biased = Copy()
+    biased.yaw_bias = 0.5
+    r = path_error_sources(biased, ds, n_samples=2)
+    assert r["path_error_m"] > 0.05 and r["exact"]["yaw rate"] < 1e-9
+    assert r["exact"]["forward velocity"] == pytest.approx(r["path_error_m"])
+    assert r["bias"]["yaw rate"] == pytest.approx(0.5) and r["bias"]["forward velocity"] == 0.0
+
+
+def test_path_error_tool_runs_one_recipe(tmp_path):
+    """tools/vae_lstm_path_error.py: the shipped models' sources and one retrained recipe (3 steps), every part."""
+    import json
+
+    tool = load_tool("vae_lstm_path_error")
+    out = tool.run(["algorithm1_elbo_control_std_0.05"], smoke=True, out_path=tmp_path / "r.json")
+    assert json.loads((tmp_path / "r.json").read_text()) == out
+    assert set(out["shipped"]) == {"vae_lstm", "vae_lstm_paper"}
+    rec = out["recipes"]["algorithm1_elbo_control_std_0.05"]
+    assert rec["steps"] == 3 and rec["overrides"]["control_obs_std"] == 0.05 and len(rec["must_show"]) == 11
+    assert set(rec["path_error_sources"]["exact"]) == {"forward velocity", "sideways velocity", "yaw rate"}

@@ -265,6 +265,39 @@ def prior_diversity(model, test_ds: WindowDataset, n_controls: int | None = None
     return out
 
 
+CONTROL_CHANNELS = ("forward velocity", "sideways velocity", "yaw rate")  # positions_control's last 3 features
+
+
+def path_error_sources(model, test_ds: WindowDataset, n_controls: int | None = None, n_samples: int = 5,
+                       seed: int = 0) -> dict:
+    """Where the path error of `prior_diversity` (Algorithm 1) comes from: the same prior samples with one of the
+    model's three control outputs replaced by the given control's (so that channel is exact) -> {"path_error_m",
+    "exact": {channel: path error (m)}, "bias": {channel: mean over clips of |the clip's mean output error|},
+    "rms": {channel: rms output error}} (errors in normalised units).  A channel whose exact copy removes most of
+    the path error is the one that drives it: an error in the yaw rate turns the whole later path."""
+    from course_lib.evaluation import path_distance
+
+    x, starts = test_batch(test_ds)
+    n_controls = len(x) if n_controls is None else n_controls
+    gen = torch.Generator().manual_seed(seed)
+    own, exact, errors = [], {c: [] for c in CONTROL_CHANNELS}, []
+    for i in range(n_controls):
+        ctrl = x[i:i + 1, :, -3:].expand(n_samples, -1, -1)
+        pred = model.generate(ctrl, generator=gen)  # the draws of prior_diversity's Algorithm-1 entry
+        gt_path = to_world(x[i:i + 1], test_ds, starts[i:i + 1])[0, :, 0]
+        own.append(path_distance(to_world(pred, test_ds, [starts[i]] * n_samples), gt_path))
+        for k, name in enumerate(CONTROL_CHANNELS):
+            fixed = pred.clone()
+            fixed[..., -3 + k] = ctrl[..., k]
+            exact[name].append(path_distance(to_world(fixed, test_ds, [starts[i]] * n_samples), gt_path))
+        errors.append((pred[..., -3:] - ctrl).numpy())
+    e = np.concatenate(errors)  # (controls * samples, T, 3)
+    return {"controls": n_controls, "path_error_m": float(np.mean(own)),
+            "exact": {c: float(np.mean(v)) for c, v in exact.items()},
+            "bias": dict(zip(CONTROL_CHANNELS, np.abs(e.mean(1)).mean(0).tolist(), strict=True)),
+            "rms": dict(zip(CONTROL_CHANNELS, np.sqrt((e ** 2).mean((0, 1))).tolist(), strict=True))}
+
+
 def posterior_pool(model, test_ds: WindowDataset) -> torch.Tensor:
     """The 4-frame posterior means z_1 of every test clip (N, U): where the decoder has learnt to read z_1."""
     x, _ = test_batch(test_ds)
@@ -511,6 +544,8 @@ VARIANTS = {
     "algorithm1_elbo_obs_std_0.4": {"generation_weight": 1.0, "obs_std": 0.4},
     "algorithm1_elbo_2000_steps": {"generation_weight": 1.0, "steps": 2000},
     "algorithm1_elbo_x3_2000_steps": {"generation_weight": 3.0, "steps": 2000},
+    "algorithm1_elbo_control_std_0.05": {"generation_weight": 1.0, "control_obs_std": 0.05, "steps": 2000},
+    "algorithm1_elbo_control_std_0.1": {"generation_weight": 1.0, "control_obs_std": 0.1, "steps": 2000},
 }
 
 

@@ -71,6 +71,7 @@ class VaeLstmConfig:
     pool: int = 2  # max-pool window = stride; two pools: 240 -> 60 steps (see "differs")
     input_dropout: float = 0.1  # dropout on joint positions and controls (rate not given in the paper)
     obs_std: float = 0.2  # std of the Gaussian likelihood p(X|z), normalised units (not given in the paper)
+    control_obs_std: float | None = None  # the likelihood's std on the 3 control channels (None: obs_std)
     l1: float = 0.1  # l1 weight regularisation (sec. 4.2)
     lr: float = 5e-4  # Adam learning rate (sec. 4.2); our short CPU runs use 1e-3 (experiments.vae_lstm)
     clip_length: int = 240  # frames per training clip (4 s at 60 fps)
@@ -105,6 +106,8 @@ class VaeLstmConfig:
             raise ValueError(f"VaeLstmConfig: kernel must be odd (same-length convs), got {self.kernel}")
         if self.clip_length % (self.pool ** 2):
             raise ValueError(f"VaeLstmConfig: clip_length {self.clip_length} must be divisible by pool^2")
+        if self.control_obs_std is not None and self.control_obs_std <= 0:
+            raise ValueError(f"VaeLstmConfig: control_obs_std must be > 0 or None, got {self.control_obs_std}")
         if self.obs_std <= 0 or self.l1 < 0 or not 0 <= self.input_dropout < 1:
             raise ValueError(f"VaeLstmConfig: need obs_std > 0, l1 >= 0, 0 <= input_dropout < 1: {self}")
         if self.generation_weight < 0 or self.kl_warmup_steps < 0 or self.free_bits < 0:
@@ -237,10 +240,14 @@ class VaeLstm(nn.Module):
         return sum(p.abs().sum() for name, p in self.named_parameters() if p.ndim > 1)
 
     def nll(self, x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
-        """L_x = -log N(X | X_hat, obs_std^2 I): x, x_hat (N, T, 66) -> summed over frames and features,
-        averaged over clips (scalar)."""
-        var = self.config.obs_std ** 2
-        return 0.5 * (((x - x_hat) ** 2) / var + math.log(var) + LOG_2PI).sum() / x.shape[0]
+        """L_x = -log N(X | X_hat, diag(obs_std^2)): x, x_hat (N, T, 66) -> summed over frames and features,
+        averaged over clips (scalar).  The 3 control channels use ``control_obs_std`` when it is set."""
+        c = self.config
+        std = x.new_full((x.shape[-1],), c.obs_std)
+        if c.control_obs_std is not None:
+            std[c.pose_dim:] = c.control_obs_std
+        var = std ** 2
+        return 0.5 * (((x - x_hat) ** 2) / var + torch.log(var) + LOG_2PI).sum() / x.shape[0]
 
     def kl_weight(self) -> float:
         """The KL weight now: 1 (the ELBO), or linear from 0 over ``kl_warmup_steps`` (KL annealing)."""
