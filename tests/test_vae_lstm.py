@@ -384,3 +384,25 @@ def test_path_error_tool_runs_one_recipe(tmp_path):
     rec = out["recipes"]["algorithm1_elbo_control_std_0.05"]
     assert rec["steps"] == 3 and rec["overrides"]["control_obs_std"] == 0.05 and len(rec["must_show"]) == 11
     assert set(rec["path_error_sources"]["exact"]) == {"forward velocity", "sideways velocity", "yaw rate"}
+
+
+def test_load_clips_refuses_a_cache_of_another_spec(tmp_path):
+    """The cache records the DataSpec that made it; another spec gets an error naming the difference, and the file
+    is left as it was (a smaller cache must not silently stand in for the lesson's 400 clips)."""
+    from course_lib.datasets import file_sha256, save_motions
+    from course_lib.experiments.vae_lstm import DataSpec, load_clips
+
+    path = tmp_path / "clips.npz"
+    made = load_clips(DataSpec(n_clips=2), path, progress=False)
+    assert len(load_clips(DataSpec(n_clips=2), path, progress=False)) == len(made) == 2
+    before = file_sha256(path)
+    with pytest.raises(ValueError, match=r"n_clips 2, asked 3.*delete the file"):
+        load_clips(DataSpec(n_clips=3), path, progress=False)
+    with pytest.raises(ValueError, match=r"seed 2017, asked 1"):
+        load_clips(DataSpec(n_clips=2, seed=1), path, progress=False)
+    assert file_sha256(path) == before
+    old = tmp_path / "old.npz"  # a cache from before the spec was recorded: its clip count is checked
+    save_motions(made, old)
+    assert len(load_clips(DataSpec(n_clips=2), old, progress=False)) == 2
+    with pytest.raises(ValueError, match=r"n_clips 2, asked 400"):
+        load_clips(DataSpec(), old, progress=False)

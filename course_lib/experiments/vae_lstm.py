@@ -88,12 +88,31 @@ def generate_clips(spec: DataSpec, progress: bool = True) -> list[Motion]:
     return clips
 
 
+CACHE_KEYS = ("n_clips", "n_subjects", "seed", "fps", "length")  # the DataSpec fields that decide the clips
+
+
 def load_clips(spec: DataSpec, path: Path = DATA_FILE, progress: bool = True) -> list[Motion]:
-    """The cached clips at ``path`` if it exists, else generated (and cached)."""
-    if path.exists():
-        return load_motions(path)
-    clips = generate_clips(spec, progress)
-    save_motions(clips, path, overwrite=True)
+    """The cached clips at ``path`` if it exists, else generated (and cached, with the spec that made them).
+
+    A cache made from another spec is refused with an error naming the difference (it is not overwritten: delete
+    it or pass another ``path``); a cache from before the spec was recorded must at least hold spec.n_clips clips
+    at spec.fps."""
+    from course_lib.datasets import read_file_meta
+
+    wanted = {k: getattr(spec, k) for k in CACHE_KEYS}
+    if not path.exists():
+        clips = generate_clips(spec, progress)
+        save_motions(clips, path, meta={"data_spec": wanted}, overwrite=True)
+        return clips
+    made = read_file_meta(path).get("data_spec")
+    clips = load_motions(path)
+    if made is None:
+        made = {"n_clips": len(clips), "fps": clips[0].fps}
+    differ = {k: (v, wanted[k]) for k, v in made.items() if k in wanted and v != wanted[k]}
+    if differ:
+        what = ", ".join(f"{k} {a!r}, asked {b!r}" for k, (a, b) in differ.items())
+        raise ValueError(f"{path}: these clips were made with another DataSpec ({what}); delete the file to "
+                         "regenerate it, or pass another path")
     return clips
 
 
