@@ -622,3 +622,18 @@ def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):
         assert sum(rows[k]["pairs"] for k in parts) == rows["all"]["pairs"]
         assert sum(rows[k]["speed_sum"] for k in parts) == pytest.approx(rows["all"]["speed_sum"], rel=1e-9)
     assert foot_skate([noisy]) > 10 * foot_skate([walk])  # the noise makes the feet skate
+
+
+def test_online_run_measures_speed_over_the_same_window_whatever_the_batch():
+    """online_run's speed after every step is the net speed over the last SPEED_WINDOW (10) frames: with 5-frame
+    batches it spans two batches, so batch sizes are compared on one measure (a 5-frame speed is noisier and a
+    'first within 10 %' settling time would favour it)."""
+    from course_lib.control import OnlineConfig
+    from course_lib.experiments.control import SPEED_WINDOW, online_run
+
+    r = online_run("walk", seed=0, config=OnlineConfig(batch=5), program=[(1.0, 1.2, 0.0)])
+    b = r["batches"]
+    assert len(b) == 6 and SPEED_WINDOW == 10
+    for k in range(2, len(b)):
+        expect = np.linalg.norm(np.subtract(b[k]["xz"], b[k - 2]["xz"])) * 30.0 / 10
+        assert b[k]["speed"] == pytest.approx(expect, rel=1e-9)

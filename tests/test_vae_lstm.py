@@ -365,12 +365,16 @@ def test_path_error_sources_known_answers():
 
     exact = path_error_sources(Copy(), ds, n_samples=2)
     assert exact["path_error_m"] < 1e-9 and max(exact["rms"].values()) == 0.0
+    assert max(exact["rms_across_draws"].values()) == 0.0  # every draw the same
     biased = Copy()
     biased.yaw_bias = 0.5
     r = path_error_sources(biased, ds, n_samples=2)
     assert r["path_error_m"] > 0.05 and r["exact"]["yaw rate"] < 1e-9
     assert r["exact"]["forward velocity"] == pytest.approx(r["path_error_m"])
     assert r["bias"]["yaw rate"] == pytest.approx(0.5) and r["bias"]["forward velocity"] == 0.0
+    # 0.5 sd of yaw rate for 240 frames at 60 fps turns the heading by 0.5 * std * 4 s
+    assert r["final_heading_error_deg"] == pytest.approx(math.degrees(0.5 * float(ds.stats[1][-1]) * 4.0), rel=1e-6)
+    assert exact["final_heading_error_deg"] < 1e-9
 
 
 def test_path_error_tool_runs_one_recipe(tmp_path):

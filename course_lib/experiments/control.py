@@ -196,25 +196,29 @@ def online_program(gait: str) -> list[tuple[float, float, float]]:
     return [(3.0, v, 0.0), (3.0, 0.6 * v, 0.0), (3.0, 1.3 * v, 0.0), (4.0, v, math.pi), (4.0, v, 0.0)]
 
 
+SPEED_WINDOW = 10  # frames (1/3 s at 30 fps) over which online_run measures the net speed after every step
+
+
 def online_run(gait: str = "walk", seed: int = 0, config=None, program=None) -> dict:
     """The scripted run (``program``: (seconds, speed, direction) segments, default ``online_program(gait)``;
     ``config``: an OnlineConfig, default the controller's) -> per batch (time, commanded speed and direction,
-    measured net speed and heading),
+    the net speed over the last ``SPEED_WINDOW`` frames, whatever the batch size, and the heading),
     the speed settling times (within 10 % of a changed command), the turn times (heading within 10 degrees
     of a +-180-degree command), frames/s of the whole run on this core, the latency in frames."""
     from course_lib.control import OnlineController
 
     ctrl = OnlineController(gait, seed=seed, config=config)
     dt = ctrl.config.batch / ctrl.fps
+    path = list(ctrl.motion().root_positions[1:, [0, 2]])  # the start's second frame, then every frame made
     log, t, t0 = [], 0.0, time.perf_counter()
     for seconds, speed, direction in program or online_program(gait):
         for _ in range(int(round(seconds / dt))):
-            m = ctrl.step(speed, direction)
-            xz = m.root_positions[:, [0, 2]]
-            before = log[-1]["xz"] if log else ctrl.motion().root_positions[1, [0, 2]]
+            path.extend(ctrl.step(speed, direction).root_positions[:, [0, 2]])
+            w = min(SPEED_WINDOW, len(path) - 1)  # the same window whatever the batch (the first batch: what exists)
             t += dt
-            log.append({"t": t, "speed_cmd": speed, "dir_cmd": direction, "xz": xz[-1],
-                        "speed": float(np.linalg.norm(xz[-1] - before) / dt), "heading": ctrl.heading})
+            log.append({"t": t, "speed_cmd": speed, "dir_cmd": direction, "xz": path[-1],
+                        "speed": float(np.linalg.norm(path[-1] - path[-1 - w]) * ctrl.fps / w),
+                        "heading": ctrl.heading})
     wall = time.perf_counter() - t0
     return {"batches": [{k: (float(v) if k != "xz" else [float(a) for a in v]) for k, v in r.items()} for r in log],
             "speed_settle_s": _settle(log, "speed_cmd", lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),

@@ -288,18 +288,21 @@ CONTROL_CHANNELS = ("forward velocity", "sideways velocity", "yaw rate")  # posi
 
 
 def path_error_sources(model, test_ds: WindowDataset, n_controls: int | None = None, n_samples: int = 5,
-                       seed: int = 0) -> dict:
+                       seed: int = 0, fps: float = 60.0) -> dict:
     """Where the path error of `prior_diversity` (Algorithm 1) comes from: the same prior samples with one of the
     model's three control outputs replaced by the given control's (so that channel is exact) -> {"path_error_m",
     "exact": {channel: path error (m)}, "bias": {channel: mean over clips of |the clip's mean output error|},
-    "rms": {channel: rms output error}} (errors in normalised units).  A channel whose exact copy removes most of
+    "rms": {channel: rms output error}, "rms_across_draws": {channel: rms of the draws about their mean}}
+    (errors in normalised units; "rms_across_draws" far below "rms" means the error is a function of the control,
+    not of z_1), and "final_heading_error_deg": the mean |heading of the model's own control - the given one's| at
+    the last frame (the yaw-rate error integrated over the clip).  A channel whose exact copy removes most of
     the path error is the one that drives it: an error in the yaw rate turns the whole later path."""
     from course_lib.evaluation import path_distance
 
     x, starts = test_batch(test_ds)
     n_controls = len(x) if n_controls is None else n_controls
     gen = torch.Generator().manual_seed(seed)
-    own, exact, errors = [], {c: [] for c in CONTROL_CHANNELS}, []
+    own, exact, errors, spread, heading = [], {c: [] for c in CONTROL_CHANNELS}, [], [], []
     for i in range(n_controls):
         ctrl = x[i:i + 1, :, -3:].expand(n_samples, -1, -1)
         pred = model.generate(ctrl, generator=gen)  # the draws of prior_diversity's Algorithm-1 entry
@@ -310,11 +313,16 @@ def path_error_sources(model, test_ds: WindowDataset, n_controls: int | None = N
             fixed[..., -3 + k] = ctrl[..., k]
             exact[name].append(path_distance(to_world(fixed, test_ds, [starts[i]] * n_samples), gt_path))
         errors.append((pred[..., -3:] - ctrl).numpy())
-    e = np.concatenate(errors)  # (controls * samples, T, 3)
+        spread.append((pred[..., -3:] - pred[..., -3:].mean(0)).numpy())
+        yaw_err = (test_ds.denormalize(pred.double()) - test_ds.denormalize(x[i:i + 1].double()))[..., -1]  # rad/s
+        heading.append(np.degrees(np.abs(yaw_err.sum(-1).numpy() / fps)))
+    e, z = np.concatenate(errors), np.concatenate(spread)  # (controls * samples, T, 3)
     return {"controls": n_controls, "path_error_m": float(np.mean(own)),
             "exact": {c: float(np.mean(v)) for c, v in exact.items()},
             "bias": dict(zip(CONTROL_CHANNELS, np.abs(e.mean(1)).mean(0).tolist(), strict=True)),
-            "rms": dict(zip(CONTROL_CHANNELS, np.sqrt((e ** 2).mean((0, 1))).tolist(), strict=True))}
+            "rms": dict(zip(CONTROL_CHANNELS, np.sqrt((e ** 2).mean((0, 1))).tolist(), strict=True)),
+            "rms_across_draws": dict(zip(CONTROL_CHANNELS, np.sqrt((z ** 2).mean((0, 1))).tolist(), strict=True)),
+            "final_heading_error_deg": float(np.mean(np.concatenate(heading)))}
 
 
 def posterior_pool(model, test_ds: WindowDataset) -> torch.Tensor:
