@@ -410,3 +410,21 @@ def test_load_clips_refuses_a_cache_of_another_spec(tmp_path):
     assert len(load_clips(DataSpec(n_clips=2), old, progress=False)) == 2
     with pytest.raises(ValueError, match=r"n_clips 2, asked 400"):
         load_clips(DataSpec(), old, progress=False)
+
+
+def test_heading_loss_charges_a_slow_yaw_error_more_than_a_fast_one():
+    """heading_loss: a constant yaw-rate error b (a heading drift) costs 0.5 T b^2 / obs_std^2 per clip; an error of
+    the same size that alternates sign every frame (no drift) costs far less; the loss adds heading_weight times it."""
+    m = VaeLstm(tiny(heading_weight=10.0)).eval()
+    x = torch.zeros(2, 16, 66)
+    slow, fast = x.clone(), x.clone()
+    slow[..., -1] = 0.1
+    fast[..., -1] = 0.1 * (-1.0) ** torch.arange(16)
+    s2 = m.config.obs_std ** 2
+    torch.testing.assert_close(m.heading_loss(x, slow), torch.tensor(0.5 * 16 * 0.01 / s2))
+    assert float(m.heading_loss(x, fast)) < 0.25 * float(m.heading_loss(x, slow))
+    torch.manual_seed(3)
+    out = m.loss(torch.randn(2, 16, 66))
+    assert "heading" in out and float(out["heading"]) > 0
+    with pytest.raises(ValueError, match="heading_weight"):
+        tiny(heading_weight=1.0, generation_weight=0.0)

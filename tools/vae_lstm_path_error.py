@@ -5,7 +5,8 @@ that weighs the 3 control channels more bring it under issue 15's 0.2 m?
 1. `experiments.vae_lstm.path_error_sources` on the shipped and the paper's-loss checkpoints: the same Algorithm-1
    prior samples with one control output at a time replaced by the given control, and each channel's error.
 2. The shipped recipe retrained with a narrower likelihood on the control channels (`VaeLstmConfig.control_obs_std`,
-   the recipes "algorithm1_elbo_control_std_*" of `experiments.vae_lstm.VARIANTS`; same seed, data and steps), scored
+   the recipes "algorithm1_elbo_control_std_*" of `experiments.vae_lstm.VARIANTS`), and with a term on Algorithm 1's
+   heading error ("algorithm1_elbo_heading_100", `VaeLstm.heading_loss`); same seed, data and steps; scored
    as the shipped model is: Tables 1-2 on the 120 held-out clips, prior diversity over all 120 controls, latent
    diagnostics, issue 15's checks, and the same path-error sources.
 
@@ -26,7 +27,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-RECIPES = ("algorithm1_elbo_control_std_0.05", "algorithm1_elbo_control_std_0.1")
+RECIPES = ("algorithm1_elbo_control_std_0.05", "algorithm1_elbo_control_std_0.1", "algorithm1_elbo_heading_100")
 
 
 def scored(model, V, base: dict, test_ds) -> dict:

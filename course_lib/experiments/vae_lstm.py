@@ -573,6 +573,7 @@ VARIANTS = {
     "algorithm1_elbo_x3_2000_steps": {"generation_weight": 3.0, "steps": 2000},
     "algorithm1_elbo_control_std_0.05": {"generation_weight": 1.0, "control_obs_std": 0.05, "steps": 2000},
     "algorithm1_elbo_control_std_0.1": {"generation_weight": 1.0, "control_obs_std": 0.1, "steps": 2000},
+    "algorithm1_elbo_heading_100": {"generation_weight": 1.0, "heading_weight": 100.0, "steps": 2000},
 }
 
 

@@ -72,6 +72,7 @@ class VaeLstmConfig:
     input_dropout: float = 0.1  # dropout on joint positions and controls (rate not given in the paper)
     obs_std: float = 0.2  # std of the Gaussian likelihood p(X|z), normalised units (not given in the paper)
     control_obs_std: float | None = None  # the likelihood's std on the 3 control channels (None: obs_std)
+    heading_weight: float = 0.0  # weight of Algorithm 1's heading term (`VaeLstm.heading_loss`; 0 = off, ours)
     l1: float = 0.1  # l1 weight regularisation (sec. 4.2)
     lr: float = 5e-4  # Adam learning rate (sec. 4.2); our short CPU runs use 1e-3 (experiments.vae_lstm)
     clip_length: int = 240  # frames per training clip (4 s at 60 fps)
@@ -110,6 +111,8 @@ class VaeLstmConfig:
             raise ValueError(f"VaeLstmConfig: control_obs_std must be > 0 or None, got {self.control_obs_std}")
         if self.obs_std <= 0 or self.l1 < 0 or not 0 <= self.input_dropout < 1:
             raise ValueError(f"VaeLstmConfig: need obs_std > 0, l1 >= 0, 0 <= input_dropout < 1: {self}")
+        if self.heading_weight < 0 or (self.heading_weight and not self.generation_weight):
+            raise ValueError(f"VaeLstmConfig: heading_weight must be >= 0 and needs generation_weight > 0: {self}")
         if self.generation_weight < 0 or self.kl_warmup_steps < 0 or self.free_bits < 0:
             raise ValueError(f"VaeLstmConfig: generation_weight, kl_warmup_steps, free_bits must be >= 0: {self}")
 
@@ -249,6 +252,15 @@ class VaeLstm(nn.Module):
         var = std ** 2
         return 0.5 * (((x - x_hat) ** 2) / var + torch.log(var) + LOG_2PI).sum() / x.shape[0]
 
+    def heading_loss(self, x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
+        """The heading term: the yaw-rate output's error summed from the first frame (the heading error, up to the
+        yaw rate's std and the frame rate), divided by the frames so far (the running mean error, sd units), as a
+        Gaussian of std obs_std on every frame: x, x_hat (N, T, 66) -> summed over frames, averaged over clips.
+        The per-frame likelihood charges a slow yaw-rate error little; the path integrates it (lesson 02, sec. 9)."""
+        t = torch.arange(1, x.shape[1] + 1, dtype=x.dtype, device=x.device)
+        running = torch.cumsum(x_hat[..., -1] - x[..., -1], dim=1) / t
+        return 0.5 * (running ** 2).sum() / self.config.obs_std ** 2 / x.shape[0]
+
     def kl_weight(self) -> float:
         """The KL weight now: 1 (the ELBO), or linear from 0 over ``kl_warmup_steps`` (KL annealing)."""
         c = self.config
@@ -288,6 +300,10 @@ class VaeLstm(nn.Module):
             loss = loss + c.generation_weight * (gen_nll + beta * self.kl_penalty(gen_kl))
             logs.update(gen_nll=gen_nll.detach(), gen_kl=(gen_kl.sum() / x.shape[0]).detach(),
                         gen_mse=F.mse_loss(x_gen, x).detach())
+            if c.heading_weight:
+                heading = self.heading_loss(x, x_gen)
+                loss = loss + c.heading_weight * heading
+                logs["heading"] = heading.detach()
         if self.training:
             self.num_updates += 1
         return {"loss": loss, **logs}
