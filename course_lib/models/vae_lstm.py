@@ -36,6 +36,9 @@ Differs from the paper:
   and take the first pooled step's posterior mean.
 - ``generation_weight`` > 0 adds Algorithm 1's ELBO to eq. (5), see above (the CPU preset: 1); the paper
   trains the first branch of eq. (9) only (``generation_weight`` = 0).
+- ``control_obs_std`` (a narrower likelihood on the 3 control channels) and ``heading_weight`` (a term on Algorithm 1's
+  running yaw-rate error, ``heading_loss``) are ours, off in the shipped preset: lesson 02's path-error experiments
+  (section 9, ``tools/vae_lstm_path_error.py``).
 - ``VaeLstmConfig.cpu()`` shrinks the widths (listed there) so a model trains in minutes on a
   2-core CPU and its checkpoint stays under 5 MB; the paper trains 5000 epochs, we train minutes.
 """
