@@ -34,13 +34,9 @@ def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
         steps = 3 if smoke else V.VARIANTS[name].get("steps")
         model, hist = V.train_one("vae_lstm", train_ds, seed=0, steps=steps, progress=False,
                                   config=V.variant_config(name))
-        res = V.lesson02_tables({"vae_lstm": model}, test_ds)
-        res = {"table1": {**base["table1"], **res["table1"]}, "table2": {**base["table2"], **res["table2"]},
-               "prior_diversity": V.prior_diversity(model, test_ds, n_controls=10),
-               "latent": V.latent_diagnostics(model, test_ds),
-               "posterior_pool_diversity": V.prior_diversity(model, test_ds, n_controls=10,
-                                                                    z1_pool=V.posterior_pool(model, test_ds))}
-        res["latent"].pop("kl_per_dim")
+        res = V.recipe_results(model, test_ds, base, n_controls=10)
+        res["posterior_pool_diversity"] = V.prior_diversity(model, test_ds, n_controls=10,
+                                                            z1_pool=V.posterior_pool(model, test_ds))
         out["variants"][name] = rounded({
             "overrides": V.VARIANTS[name], "train_seconds": hist.seconds, "steps": hist.num_steps,
             "final_mse": hist.final("mse", 20), "final_gen_mse": hist.final("gen_mse", 20) if "gen_mse" in hist.step

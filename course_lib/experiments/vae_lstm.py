@@ -284,7 +284,7 @@ def prior_diversity(model, test_ds: WindowDataset, n_controls: int | None = None
     return out
 
 
-CONTROL_CHANNELS = ("forward velocity", "sideways velocity", "yaw rate")  # positions_control's last 3 features
+CONTROL_CHANNELS = ("forward velocity", "sideways velocity", "yaw rate")  # feature_names("positions_control")[-3:]
 
 
 def path_error_sources(model, test_ds: WindowDataset, n_controls: int | None = None, n_samples: int = 5,
@@ -323,6 +323,18 @@ def path_error_sources(model, test_ds: WindowDataset, n_controls: int | None = N
             "rms": dict(zip(CONTROL_CHANNELS, np.sqrt((e ** 2).mean((0, 1))).tolist(), strict=True)),
             "rms_across_draws": dict(zip(CONTROL_CHANNELS, np.sqrt((z ** 2).mean((0, 1))).tolist(), strict=True)),
             "final_heading_error_deg": float(np.mean(np.concatenate(heading)))}
+
+
+def recipe_results(model, test_ds: WindowDataset, baselines: dict, n_controls: int | None = None) -> dict:
+    """One VAE-LSTM recipe scored as the shipped model is: its Tables 1-2 joined with the baselines' (``baselines``:
+    `lesson02_tables` of the baseline models), prior diversity over the first ``n_controls`` test controls (None:
+    all) and the latent diagnostics without the per-dimension list -> the dict `must_show` reads."""
+    res = lesson02_tables({"vae_lstm": model}, test_ds)
+    diversity = prior_diversity(model, test_ds, n_controls=n_controls)
+    latent = latent_diagnostics(model, test_ds)  # after the diversity, in the order the recorded runs used
+    latent.pop("kl_per_dim")
+    return {"table1": {**baselines["table1"], **res["table1"]}, "table2": {**baselines["table2"], **res["table2"]},
+            "prior_diversity": diversity, "latent": latent}
 
 
 def posterior_pool(model, test_ds: WindowDataset) -> torch.Tensor:
