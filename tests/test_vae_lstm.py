@@ -12,6 +12,8 @@ from course_lib.models.vae_lstm import ModifiedLstmCell, VaeLstm, VaeLstmConfig,
 
 
 def tiny(**kw) -> VaeLstmConfig:
+    if not kw.get("generation_weight", 1.0):  # the preset's heading term rides on Algorithm 1's ELBO
+        kw.setdefault("heading_weight", 0.0)
     return VaeLstmConfig.cpu(**{"enc_channels": 8, "latent_dim": 8, "control_channels": 8, "control_hidden": 8,
                                 "dec_channels": 8, "kernel": 5, "input_dropout": 0.0, **kw})
 
@@ -108,7 +110,7 @@ def test_loss_terms_match_formulas():
 def test_generation_elbo_is_algorithm1_trained():
     """generation_weight adds -log p(X | Algorithm 1 from z_1 ~ q(z_1 | X_1:4)) + KL(z_1) to the paper's loss."""
     torch.manual_seed(9)
-    m = VaeLstm(tiny(generation_weight=0.5, l1=0.0)).eval()
+    m = VaeLstm(tiny(generation_weight=0.5, l1=0.0, heading_weight=0.0)).eval()  # the heading term: its own test
     x = torch.randn(3, 16, 66)
     torch.manual_seed(1)
     out = m.loss(x)
@@ -325,7 +327,7 @@ def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     out = sweep.run(["paper_free_bits"], smoke=True, out_path=tmp_path / "r.json")
     res = json.loads((tmp_path / "r.json").read_text())["variants"]["paper_free_bits"]
     assert res == out["variants"]["paper_free_bits"] and res["steps"] == 3
-    assert res["overrides"] == {"generation_weight": 0.0, "free_bits": 0.5}
+    assert res["overrides"] == {"heading_weight": 0.0, "generation_weight": 0.0, "free_bits": 0.5}
     assert set(res["vae_rows"]["table1"]) == {"VAE-LSTM", "VAE-LSTM (prior sample)", "VAE-LSTM (prior, every step)"}
     assert len(res["must_show"]) == 11 and res["latent"]["kl_per_dim_min"] >= 0
 
@@ -373,8 +375,12 @@ def test_path_error_sources_known_answers():
     assert r["exact"]["forward velocity"] == pytest.approx(r["path_error_m"])
     assert r["bias"]["yaw rate"] == pytest.approx(0.5) and r["bias"]["forward velocity"] == 0.0
     # 0.5 sd of yaw rate for 240 frames at 60 fps turns the heading by 0.5 * std * 4 s
-    assert r["final_heading_error_deg"] == pytest.approx(math.degrees(0.5 * float(ds.stats[1][-1]) * 4.0), rel=1e-6)
+    drift = math.degrees(0.5 * float(ds.stats[1][-1]))  # degrees per second
+    assert r["final_heading_error_deg"] == pytest.approx(drift * 4.0, rel=1e-6)
     assert exact["final_heading_error_deg"] < 1e-9
+    # the drift grows linearly: drift x s after s seconds, and its mean over the 240 frames is drift x 241 / 120 s
+    assert r["heading_error_deg_at"] == pytest.approx({str(s): drift * s for s in (1, 2, 3, 4)}, rel=1e-6)
+    assert r["mean_heading_error_deg"] == pytest.approx(drift * 241 / 120, rel=1e-6)
 
 
 def test_path_error_tool_runs_one_recipe(tmp_path):

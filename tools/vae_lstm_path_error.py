@@ -1,20 +1,22 @@
-"""Lesson 02's path-error experiment: why does the path integrated from the VAE-LSTM's own control outputs stray
-further (0.215 m over the 120 held-out controls) than the paper's-loss model's (0.161 m), and does a likelihood
-that weighs the 3 control channels more bring it under issue 15's 0.2 m?
+"""Lesson 02's path-error experiment: why did the path integrated from the VAE-LSTM's own control outputs stray
+further (0.215 m over the 120 held-out controls, Algorithm 1's ELBO alone) than the paper's-loss model's (0.161 m),
+and what brings it under issue 15's 0.2 m?
 
 1. `experiments.vae_lstm.path_error_sources` on the shipped and the paper's-loss checkpoints: the same Algorithm-1
-   prior samples with one control output at a time replaced by the given control, and each channel's error.
-2. The shipped recipe retrained with a narrower likelihood on the control channels (`VaeLstmConfig.control_obs_std`,
-   the recipes "algorithm1_elbo_control_std_*" of `experiments.vae_lstm.VARIANTS`), and with a term on Algorithm 1's
-   heading error ("algorithm1_elbo_heading_100", `VaeLstm.heading_loss`); same seed, data and steps; scored
-   as the shipped model is: Tables 1-2 on the 120 held-out clips, prior diversity over all 120 controls, latent
-   diagnostics, issue 15's checks, and the same path-error sources.
+   prior samples with one control output at a time replaced by the given control, each channel's error, and the
+   heading error along the clip.
+2. Recipes of `experiments.vae_lstm.VARIANTS` retrained: Algorithm 1's ELBO alone ("algorithm1_elbo_2000_steps",
+   the preset before the heading term), with a narrower likelihood on the control channels
+   (`VaeLstmConfig.control_obs_std`, "algorithm1_elbo_control_std_*"), and with the term on Algorithm 1's heading
+   error ("algorithm1_elbo_heading_100", `VaeLstm.heading_loss`, the shipped preset); same seed, data and steps;
+   scored as the shipped model is: Tables 1-2 on the 120 held-out clips, prior diversity over all 120 controls,
+   latent diagnostics, issue 15's checks, and the same path-error sources.
 
     python tools/vae_lstm_path_error.py --out tools/vae_lstm_path_error_results.json [--only NAME ...] [--seed N]
                                         [--smoke]
 
-About 10 minutes per retrained recipe on one core.  Nothing here is shipped: checkpoints/ come from
-`python -m course_lib.reproduce vae_lstm`.
+About 10 minutes per retrained recipe on one core.  The checkpoints in checkpoints/ come from
+`python -m course_lib.reproduce vae_lstm`, not from here.
 """
 
 from __future__ import annotations
