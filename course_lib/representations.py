@@ -392,14 +392,25 @@ def _turn(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
     return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
 
 
-def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets) -> tuple[torch.Tensor, torch.Tensor,
-                                                                                    torch.Tensor]:
+def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: float = 0.0) -> tuple[
+        torch.Tensor, torch.Tensor, torch.Tensor]:
     """-> lowest toe height above the root (..., T), the anchor toe's floor-frame (x, z) on frames t-1 and t
-    (..., T-1, 2) each: the anchor of step t is the toe that is lower on frame t-1."""
+    (..., T-1, 2) each: the anchor of step t is the toe that is lower on frame t-1.
+
+    tau > 0 (metres) makes the anchor soft: both toes weighted by softmax(-height / tau) of their heights above the
+    root, the weights of frame t-1 for step t's anchor point and those of frame t for the height; tau -> 0 is the hard
+    choice.  A hard anchor jumps from one toe to the other, so the slip must jump with it at every change of support;
+    a soft one moves between the toes over the frames both are near the floor."""
     flat = features.clone()
     flat[..., 3] = 0.0  # FK relative to the root's height: the pose alone decides the feet
     rel = local_positions(flat, skeleton, offsets)  # (..., T, J, 3)
     toes = rel[..., [skeleton.index("LeftToeBase"), skeleton.index("RightToeBase")], :]  # (..., T, 2, 3)
+    if tau > 0:
+        w = torch.softmax(-toes[..., 1] / tau, dim=-1)  # (..., T, 2)
+        wp = w[..., :-1, :, None]  # frame t-1's weights, for both ends of step t
+        prev = (wp * toes[..., :-1, :, :]).sum(-2)[..., [0, 2]]
+        cur = (wp * toes[..., 1:, :, :]).sum(-2)[..., [0, 2]]
+        return (w * toes[..., 1]).sum(-1), prev, cur
     low = toes[..., 1].argmin(-1, keepdim=True)  # (..., T, 1)
     pick = low[..., :-1, :, None].expand(*low.shape[:-2], low.shape[-2] - 1, 1, 3)  # (..., T-1, 1, 3)
     prev = toes[..., :-1, :, :].gather(-2, pick)[..., 0, :][..., [0, 2]]  # anchor on t-1
@@ -407,27 +418,35 @@ def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets) -> tuple
     return toes[..., 1].min(-1).values, prev, cur
 
 
-def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None) -> torch.Tensor:
+def _check_tau(tau: float) -> None:
+    if not (np.isfinite(tau) and tau >= 0):
+        raise ValueError(f"anchor tau must be a finite number of metres >= 0 (0: the hard anchor), got {tau!r}")
+
+
+def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0) -> torch.Tensor:
     """Raw state features (..., T, D) -> the same with the root tied to the feet (lesson 03's RNN reads these):
 
     column 3, the root height, becomes the lower toe's height above the floor, h_t = y_root + min_toe y_rel
     (about 0 on every subject while a foot is down); columns 0-1, the floor displacement d_t, become the slip
     of the anchor toe (the lower one on frame t-1), s_t = R_y(dyaw_t) p_t + d_t - p_{t-1} with p its floor-frame
     (x, z) (the toe's own displacement, as `refiner.end_effector_features`; about 0 while it is planted).
-    Row 0 keeps d_0 (decoders ignore it).  Exactly inverted by `unanchor_feet` on the same skeleton."""
+    Row 0 keeps d_0 (decoders ignore it).  Exactly inverted by `unanchor_feet` on the same skeleton and tau.
+    tau > 0 (metres): the soft anchor of `_feet_geometry`, both toes weighted by their heights."""
     _check_state_tensor(features, skeleton)
-    low, prev, cur = _feet_geometry(features, skeleton, offsets)
+    _check_tau(tau)
+    low, prev, cur = _feet_geometry(features, skeleton, offsets, tau)
     out = features.clone()
     out[..., 3] = features[..., 3] + low
     out[..., 1:, 0:2] = _turn(cur, features[..., 1:, 2]) + features[..., 1:, 0:2] - prev
     return out
 
 
-def unanchor_feet(anchored: torch.Tensor, skeleton: Skeleton, offsets=None) -> torch.Tensor:
+def unanchor_feet(anchored: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0) -> torch.Tensor:
     """The inverse of `anchor_on_feet`: (..., T, D) feet-anchored features -> raw state features, on the skeleton
-    (offsets (J, 3), or (..., J, 3) one per motion) that decides where the toes are."""
+    (offsets (J, 3), or (..., J, 3) one per motion) that decides where the toes are, with the same tau."""
     _check_state_tensor(anchored, skeleton, "anchored")
-    low, prev, cur = _feet_geometry(anchored, skeleton, offsets)
+    _check_tau(tau)
+    low, prev, cur = _feet_geometry(anchored, skeleton, offsets, tau)
     out = anchored.clone()
     out[..., 3] = anchored[..., 3] - low
     out[..., 1:, 0:2] = anchored[..., 1:, 0:2] + prev - _turn(cur, anchored[..., 1:, 2])

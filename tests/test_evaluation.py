@@ -27,6 +27,7 @@ from course_lib.evaluation import (
     path_distance,
     pose_error,
     prediction_error,
+    root_jerk_split,
     speed_error,
     table,
     wilson_interval,
@@ -111,6 +112,30 @@ def test_ground_penetration_and_jitter():
     clip = np.repeat(rest_clip(T=40)[:1], 40, axis=0)
     clip[..., 0] += (0.5 * t**3)[:, None]  # x = a t^3 -> jerk 6a = 3 m/s^3 for every joint
     np.testing.assert_allclose(jitter(clip, fps=FPS), 3.0, rtol=1e-6)
+
+
+def test_root_jerk_split_by_change_of_support():
+    """A root moving at constant velocity has no jerk; a 1-cm jump of the root on the frame the lower toe changes
+    shows near the change only, the same jump 10 frames away only elsewhere."""
+    T, lt, rt = 40, SKEL.index("LeftToeBase"), SKEL.index("RightToeBase")
+    clip = rest_clip(T=T, velocity=(1.0, 0, 0.5))
+    clip[:20, lt, 1] -= 0.01  # the left toe is lower until frame 19, the right from frame 20: one change, at 20
+    clip[20:, rt, 1] -= 0.01
+    calm = root_jerk_split(clip, fps=FPS)
+    assert calm["all"] < 1e-6 and calm["near_change"] < 1e-6 and calm["elsewhere"] < 1e-6
+    jump = clip.copy()
+    jump[20:, 0, 0] += 0.01  # the root steps 1 cm sideways at the change
+    at = root_jerk_split(jump, fps=FPS, window=2)
+    assert at["near_change"] > 100 and at["elsewhere"] < 1e-6 and at["near_share"] == pytest.approx(1.0)
+    # the third difference of a unit step is (1, -2, 1) around it: 4 x 0.01 m x fps^3 over the 37 jerk samples
+    np.testing.assert_allclose(at["all"], 4 * 0.01 * FPS**3 / (T - 3), rtol=1e-9)
+    away = clip.copy()
+    away[30:, 0, 0] += 0.01
+    far = root_jerk_split(away, fps=FPS, window=2)
+    assert far["near_change"] < 1e-6 and far["elsewhere"] > 0 and far["near_share"] < 1e-9
+    np.testing.assert_allclose(far["all"], at["all"], rtol=1e-9)  # the same jerk, somewhere else
+    with pytest.raises(ValueError, match="window"):
+        root_jerk_split(clip, fps=FPS, window=-1)
 
 
 def test_bone_length_violation():

@@ -60,3 +60,25 @@ def test_toe_height_is_the_lower_toes_height_for_any_subject(walks):
     assert float(rise.min()) > 0.05  # the root sits higher: the feet stay on the floor
     with pytest.raises(ValueError, match="state features"):
         anchor_on_feet(torch.zeros(5, 67), SK)
+
+
+def test_soft_anchor_round_trip_hard_limit_and_drag(walks):
+    """tau > 0 weights both toes by height: exact round trip, the hard anchor as tau -> 0, and a body dragged at
+    0.4 m/s slips by exactly 0.4 m/s more than the undragged one (every toe's own slip grows by the drag, and the
+    weights sum to one)."""
+    f = torch.stack([feats(m) for m in walks])
+    off = torch.from_numpy(np.stack([m.skeleton.offsets for m in walks]))
+    for tau in (0.01, 0.03):
+        a = anchor_on_feet(f, SK, off, tau)
+        assert (unanchor_feet(a, SK, off, tau) - f).abs().max() < 1e-12
+        assert torch.equal(a[..., 2:3], f[..., 2:3]) and torch.equal(a[..., 4:], f[..., 4:])
+    assert (anchor_on_feet(f, SK, off, 1e-6) - anchor_on_feet(f, SK, off)).abs().max() < 1e-5
+    m = walks[0]
+    drag = np.arange(len(m))[:, None] / m.fps * np.array([0.0, 0.0, 0.4])
+    dragged = Motion(m.rotations, m.root_positions + drag, m.skeleton, m.fps)
+    s0, s1 = (anchor_on_feet(feats(x), m.skeleton, tau=0.02)[1:, :2] for x in (m, dragged))
+    # the drag is along world z; the slip is in frame t-1's floor frame: compare lengths of the difference
+    np.testing.assert_allclose(((s1 - s0).norm(dim=-1) * m.fps).numpy(), 0.4, atol=1e-9)
+    for bad in (-0.01, float("nan")):
+        with pytest.raises(ValueError, match="tau"):
+            anchor_on_feet(feats(m), m.skeleton, tau=bad)

@@ -130,6 +130,10 @@ def test_bad_input_errors():
         m.generate(torch.randn(2, 2, 68), 1, contact_mode="round")
     with pytest.raises(ValueError, match="contact_dims"):
         GmmRnnConfig(dim=10)
+    with pytest.raises(ValueError, match="anchor_tau"):
+        GmmRnnConfig(anchor_tau=0.02)  # a soft anchor needs feet-anchored features
+    with pytest.raises(ValueError, match="anchor_tau"):
+        GmmRnnConfig(features="feet_anchored", anchor_tau=-0.01)
 
 
 def test_residual_means_start_from_the_input():

@@ -87,6 +87,7 @@ class RnnPrior:
         cfg = self.model.config
         # what the model reads and which columns it copies (older GmmRnn versions: state features, none)
         self.features = getattr(cfg, "features", "state_features")
+        self.anchor_tau = getattr(cfg, "anchor_tau", 0.0)
         self.fixed_dims = tuple(getattr(cfg, "fixed_dims", ()))
         buf_mean, buf_std = getattr(self.model, "feature_mean", None), getattr(self.model, "feature_std", None)
         identity = buf_mean is None or bool((buf_mean == 0).all() and (buf_std == 1).all())
@@ -123,7 +124,7 @@ class RnnPrior:
         if self.features == "feet_anchored":
             from course_lib import representations
 
-            raw = representations.anchor_on_feet(raw, skeleton)
+            raw = representations.anchor_on_feet(raw, skeleton, tau=self.anchor_tau)
         mean, std = self.model_norm
         return ((raw - mean) / std).float()
 
@@ -134,7 +135,7 @@ class RnnPrior:
         if self.features == "feet_anchored":
             from course_lib import representations
 
-            raw = representations.unanchor_feet(raw, skeleton)
+            raw = representations.unanchor_feet(raw, skeleton, tau=self.anchor_tau)
         raw = self.clean(raw)
         raw[..., self.contact_cols] = raw[..., self.contact_cols].round()  # 0/1 bits, not 2e-8 (float32)
         return raw

@@ -29,6 +29,7 @@ from course_lib.evaluation.metrics import (
     path_distance,
     pose_error,
     prediction_error,
+    root_jerk_split,
     root_relative,
     speed_error,
 )
@@ -56,5 +57,5 @@ __all__ = [
     "classifier_features", "contact_agreement", "facing_yaw", "fid", "foot_skate", "frechet_distance",
     "freeze_floor", "ground_penetration", "heading_error", "inception_score", "jitter", "joint_speed",
     "load_classifier", "lower_toe", "mean_sd", "motions_to_batch", "npss", "over_seeds", "path_distance", "pose_error",
-    "prediction_error", "root_relative", "speed_error", "table", "wilson_interval",
+    "prediction_error", "root_jerk_split", "root_relative", "speed_error", "table", "wilson_interval",
 ]

@@ -34,7 +34,8 @@ from course_lib.skeleton import Skeleton
 
 __all__ = [
     "apd", "bone_length_violation", "facing_yaw", "foot_skate", "ground_penetration", "heading_error",
-    "jitter", "npss", "path_distance", "pose_error", "prediction_error", "root_relative", "speed_error",
+    "jitter", "npss", "path_distance", "pose_error", "prediction_error", "root_jerk_split", "root_relative",
+    "speed_error",
 ]
 
 
@@ -221,6 +222,34 @@ def jitter(motions, fps: float | None = None, skeleton: Skeleton | None = None) 
         raise ValueError("jitter: clips need at least 4 frames for a third difference")
     jerk = np.concatenate([np.linalg.norm(np.diff(c, n=3, axis=0), axis=-1).ravel() for c in clips])
     return float(jerk.mean() * fps**3)
+
+
+def root_jerk_split(motions, fps: float | None = None, skeleton: Skeleton | None = None, window: int = 2) -> dict:
+    """The root's jerk (m/s^3, as `jitter` computes it, on the root joint alone) split by the frames near a change
+    of support: {"all", "near_change", "elsewhere", "near_share"} (near_share: the fraction of the root's jerk that
+    lies near a change).  A change of support is a frame whose lower toe (LeftToeBase / RightToeBase, by height)
+    is not the previous frame's; a jerk sample (frames k..k+3) is near one when frame k+1 or k+2 lies within
+    ``window`` frames of a change.  Mocap's root moves smoothly through its changes of support; a model that
+    places its root by a foot jumps there (lesson 03)."""
+    clips, skel, fps = _clips(motions, "motions", skeleton, fps)
+    fps = _need_fps(fps, "root_jerk_split")
+    if min(len(c) for c in clips) < 4:
+        raise ValueError("root_jerk_split: clips need at least 4 frames for a third difference")
+    if int(window) != window or window < 0:
+        raise ValueError(f"root_jerk_split: window must be a whole number of frames >= 0, got {window!r}")
+    toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
+    near_all, jerk_all = [], []
+    for c in clips:
+        low = c[:, toes, 1].argmin(-1)
+        change = np.r_[False, low[1:] != low[:-1]]
+        near = np.convolve(change.astype(float), np.ones(2 * int(window) + 1), mode="same") > 0
+        jerk_all.append(np.linalg.norm(np.diff(c[:, 0], n=3, axis=0), axis=-1) * fps**3)  # (T-3,)
+        near_all.append(near[1:-2] | near[2:-1])
+    jerk, near = np.concatenate(jerk_all), np.concatenate(near_all)
+    total = float(jerk.sum())
+    return {"all": float(jerk.mean()), "near_change": float(jerk[near].mean()) if near.any() else 0.0,
+            "elsewhere": float(jerk[~near].mean()) if (~near).any() else 0.0,
+            "near_share": float(jerk[near].sum() / total) if total > 0 else 0.0}
 
 
 def bone_length_violation(motions, skeleton: Skeleton | None = None) -> float:

@@ -92,6 +92,7 @@ class GmmRnnConfig:
     self_feed: tuple[int, int] | None = None  # (k, m): k true frames then m own samples as inputs, repeated
     absolute_dims: tuple[int, ...] = ()  # with residual=True: columns whose means stay absolute, mu_i = mu_hat_i
     features: str = "state_features"  # what x is: "state_features" (eq. 3) or "feet_anchored" (lesson 03's)
+    anchor_tau: float = 0.0  # feet_anchored: 0 the lower toe, > 0 (m) both toes weighted (anchor_on_feet's tau)
     fixed_dims: tuple[int, ...] = ()  # columns the data never vary: not modelled, copied from x_t (see "differs")
     bernoulli_contacts: bool = False  # contact bits from a Bernoulli head, not from the Gaussians (see "differs")
 
@@ -126,6 +127,9 @@ class GmmRnnConfig:
         if self.features not in ("state_features", "feet_anchored"):
             raise ValueError(f"GmmRnnConfig: features must be 'state_features' or 'feet_anchored', got "
                              f"{self.features!r}")
+        if not (np.isfinite(self.anchor_tau) and self.anchor_tau >= 0) or (self.anchor_tau and
+                                                                            self.features != "feet_anchored"):
+            raise ValueError(f"GmmRnnConfig: anchor_tau must be >= 0 (m), and > 0 only with feet_anchored: {self}")
         self.fixed_dims = tuple(int(c) for c in self.fixed_dims)
         if any(not 0 <= c < self.dim for c in self.fixed_dims) or set(self.fixed_dims) & set(self.contact_dims):
             raise ValueError(f"GmmRnnConfig: fixed_dims {self.fixed_dims} must lie in 0..{self.dim - 1}, off the "
