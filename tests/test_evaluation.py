@@ -134,6 +134,15 @@ def test_root_jerk_split_by_change_of_support():
     far = root_jerk_split(away, fps=FPS, window=2)
     assert far["near_change"] < 1e-6 and far["elsewhere"] > 0 and far["near_share"] < 1e-9
     np.testing.assert_allclose(far["all"], at["all"], rtol=1e-9)  # the same jerk, somewhere else
+    # the window's edge: a jerk sample k (frames k..k+3) is near when frame k+1 or k+2 is within 2 frames of the
+    # change at 20. A step at frame s gives samples s-3..s-1 (1, 2, 1); at s = 24 only sample 21 (frames 22 and 23)
+    # touches frame 22, so a quarter of the jerk is near; at s = 25 none is
+    for s, share in ((24, 0.25), (25, 0.0)):
+        edge = clip.copy()
+        edge[s:, 0, 0] += 0.01
+        assert root_jerk_split(edge, fps=FPS, window=2)["near_share"] == pytest.approx(share, abs=1e-9)
+    short = root_jerk_split(clip[:4], fps=FPS, window=2)  # fewer frames than the window's width
+    assert short["all"] < 1e-6
     with pytest.raises(ValueError, match="window"):
         root_jerk_split(clip, fps=FPS, window=-1)
 

@@ -10,7 +10,7 @@ import torch
 
 from course_lib.datasets import generate_locomotion_set
 from course_lib.motion import Motion
-from course_lib.representations import anchor_on_feet, encode_state_features, unanchor_feet
+from course_lib.representations import anchor_on_feet, encode_state_features, root_start, unanchor_feet
 from course_lib.skeleton import Skeleton
 
 SK = Skeleton.canonical()
@@ -62,10 +62,10 @@ def test_toe_height_is_the_lower_toes_height_for_any_subject(walks):
         anchor_on_feet(torch.zeros(5, 67), SK)
 
 
-def test_soft_anchor_round_trip_hard_limit_and_drag(walks):
-    """tau > 0 weights both toes by height: exact round trip, the hard anchor as tau -> 0, and a body dragged at
-    0.4 m/s slips by exactly 0.4 m/s more than the undragged one (every toe's own slip grows by the drag, and the
-    weights sum to one)."""
+def test_soft_anchor_round_trip_hard_limit_and_weights(walks):
+    """tau > 0 weights both toes by height: exact round trip, the hard anchor as tau -> 0, and the slip and the toe
+    height recomputed another way: from the joint positions, each toe's own floor-frame slip and height weighted by
+    softmax(-height / tau) (frame t-1's heights for step t's slip, frame t's for the height)."""
     f = torch.stack([feats(m) for m in walks])
     off = torch.from_numpy(np.stack([m.skeleton.offsets for m in walks]))
     for tau in (0.01, 0.03):
@@ -73,12 +73,22 @@ def test_soft_anchor_round_trip_hard_limit_and_drag(walks):
         assert (unanchor_feet(a, SK, off, tau) - f).abs().max() < 1e-12
         assert torch.equal(a[..., 2:3], f[..., 2:3]) and torch.equal(a[..., 4:], f[..., 4:])
     assert (anchor_on_feet(f, SK, off, 1e-6) - anchor_on_feet(f, SK, off)).abs().max() < 1e-5
-    m = walks[0]
-    drag = np.arange(len(m))[:, None] / m.fps * np.array([0.0, 0.0, 0.4])
-    dragged = Motion(m.rotations, m.root_positions + drag, m.skeleton, m.fps)
-    s0, s1 = (anchor_on_feet(feats(x), m.skeleton, tau=0.02)[1:, :2] for x in (m, dragged))
-    # the drag is along world z; the slip is in frame t-1's floor frame: compare lengths of the difference
-    np.testing.assert_allclose(((s1 - s0).norm(dim=-1) * m.fps).numpy(), 0.4, atol=1e-9)
+    m, tau = walks[0], 0.02
+    pos = m.positions()  # (T, J, 3) world
+    toes = pos[:, [m.skeleton.index("LeftToeBase"), m.skeleton.index("RightToeBase")]]  # (T, 2, 3)
+    dyaw = feats(m)[:, 2].numpy()  # yaw change per frame (frame 0 repeats frame 1's)
+    heading = root_start(m)[2] + np.cumsum(np.r_[0.0, dyaw[1:]])  # each frame's floor-frame yaw
+    c, s = np.cos(heading), np.sin(heading)
+    h = toes[..., 1] - pos[:, None, 0, 1]  # toe height above the root
+    w = np.exp(-h / tau) / np.exp(-h / tau).sum(-1, keepdims=True)  # (T, 2)
+    a = anchor_on_feet(feats(m), m.skeleton, tau=tau).numpy()
+    np.testing.assert_allclose(a[:, 3], pos[:, 0, 1] + (w * h).sum(-1), atol=1e-9)
+    assert w.min() < 0.05 < 0.4 < w.max(axis=-1).min()  # some frames lean on one toe, none ignores both
+    # each toe's world displacement from t-1 to t, in frame t-1's floor frame: its own slip
+    dw = toes[1:, :, [0, 2]] - toes[:-1, :, [0, 2]]
+    own = np.stack((c[:-1, None] * dw[..., 0] - s[:-1, None] * dw[..., 1],
+                    s[:-1, None] * dw[..., 0] + c[:-1, None] * dw[..., 1]), -1)
+    np.testing.assert_allclose(a[1:, :2], (w[:-1, :, None] * own).sum(1), atol=1e-9)
     for bad in (-0.01, float("nan")):
         with pytest.raises(ValueError, match="tau"):
             anchor_on_feet(feats(m), m.skeleton, tau=bad)

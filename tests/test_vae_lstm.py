@@ -327,7 +327,7 @@ def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     out = sweep.run(["paper_free_bits"], smoke=True, out_path=tmp_path / "r.json")
     res = json.loads((tmp_path / "r.json").read_text())["variants"]["paper_free_bits"]
     assert res == out["variants"]["paper_free_bits"] and res["steps"] == 3
-    assert res["overrides"] == {"heading_weight": 0.0, "generation_weight": 0.0, "free_bits": 0.5}
+    assert res["overrides"] == {"heading_weight": 0.0, "generation_weight": 0.0, "free_bits": 0.5, "steps": 1000}
     assert set(res["vae_rows"]["table1"]) == {"VAE-LSTM", "VAE-LSTM (prior sample)", "VAE-LSTM (prior, every step)"}
     assert len(res["must_show"]) == 11 and res["latent"]["kl_per_dim_min"] >= 0
 
@@ -357,12 +357,12 @@ def test_path_error_sources_known_answers():
     x, _ = test_batch(ds)
 
     class Copy:
-        yaw_bias = 0.0
+        yaw_bias, frames = 0.0, slice(None)
 
         def generate(self, control, generator=None):
             i = next(k for k in range(len(x)) if torch.equal(x[k, :, -3:], control[0]))
             out = x[i:i + 1].expand(len(control), -1, -1).clone()
-            out[..., -1] += self.yaw_bias
+            out[:, self.frames, -1] += self.yaw_bias
             return out
 
     exact = path_error_sources(Copy(), ds, n_samples=2)
@@ -375,12 +375,19 @@ def test_path_error_sources_known_answers():
     assert r["exact"]["forward velocity"] == pytest.approx(r["path_error_m"])
     assert r["bias"]["yaw rate"] == pytest.approx(0.5) and r["bias"]["forward velocity"] == 0.0
     # 0.5 sd of yaw rate for 240 frames at 60 fps turns the heading by 0.5 * std * 4 s
+    # as integrate_root, frame t's heading sums the rates of frames 1..t: 0.5 sd of yaw rate turns the heading by
+    # drift x t / 60 s by frame t, so drift x 239 / 60 at the last frame and drift x (60 s - 1) / 60 after s seconds,
+    # and drift x 2 s on average over frames 1..239
     drift = math.degrees(0.5 * float(ds.stats[1][-1]))  # degrees per second
-    assert r["final_heading_error_deg"] == pytest.approx(drift * 4.0, rel=1e-6)
+    assert r["final_heading_error_deg"] == pytest.approx(drift * 239 / 60, rel=1e-6)
     assert exact["final_heading_error_deg"] < 1e-9
-    # the drift grows linearly: drift x s after s seconds, and its mean over the 240 frames is drift x 241 / 120 s
-    assert r["heading_error_deg_at"] == pytest.approx({str(s): drift * s for s in (1, 2, 3, 4)}, rel=1e-6)
-    assert r["mean_heading_error_deg"] == pytest.approx(drift * 241 / 120, rel=1e-6)
+    assert r["heading_error_deg_at"] == pytest.approx({str(s): drift * (60 * s - 1) / 60 for s in (1, 2, 3, 4)},
+                                                      rel=1e-6)
+    assert r["mean_heading_error_deg"] == pytest.approx(drift * 2.0, rel=1e-6)
+    first = Copy()  # an error on frame 0 alone: integrate_root never applies frame 0's rate
+    first.yaw_bias, first.frames = 0.5, slice(0, 1)
+    f0 = path_error_sources(first, ds, n_samples=2)
+    assert f0["final_heading_error_deg"] < 1e-9 and f0["mean_heading_error_deg"] < 1e-9 and f0["path_error_m"] < 1e-9
 
 
 def test_path_error_tool_runs_one_recipe(tmp_path):

@@ -105,7 +105,8 @@ def main(argv=None) -> None:
     p.add_argument("--only", nargs="*", default=[])
     p.add_argument("--shipped", action="store_true", help="measure checkpoints/gmm_rnn.pt as it is")
     p.add_argument("--steps", type=int, default=None, help="override rnn_steps (a quick check)")
-    p.add_argument("--seed", type=int, default=0, help="training and sampling seed (not 0: recorded as 'NAME, seed N')")
+    p.add_argument("--seed", type=int, default=0,
+                   help="the training seed, also the sampling seed of the measures (not 0: recorded as 'NAME, seed N')")
     a = p.parse_args(argv)
     torch.set_num_threads(1)
     torch.set_flush_denormal(True)
@@ -136,7 +137,8 @@ def main(argv=None) -> None:
             model, hist, _ = X.train_rnn(ds, spec, seed=a.seed, progress=False)
             res = {"train_seconds": hist.seconds, "final_nll": hist.final("loss", 50), "steps": hist.num_steps,
                    "spec": {k: v for k, v in VARIANTS[name].items()}}
-            torch.save(model.state_dict(), Path("/tmp") / f"gmm_rnn_skate_{name}.pt")
+            tag = f"_seed{a.seed}" if a.seed else ""  # the sampling variants' "_model" reads the seed-0 file
+            torch.save(model.state_dict(), Path("/tmp") / f"gmm_rnn_skate_{name}{tag}.pt")
         res.update(measure(model, test, ds.stats, spec, seed=a.seed))
         if a.seed:
             res["seed"] = a.seed

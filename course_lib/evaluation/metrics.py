@@ -242,7 +242,8 @@ def root_jerk_split(motions, fps: float | None = None, skeleton: Skeleton | None
     for c in clips:
         low = c[:, toes, 1].argmin(-1)
         change = np.r_[False, low[1:] != low[:-1]]
-        near = np.convolve(change.astype(float), np.ones(2 * int(window) + 1), mode="same") > 0
+        w = int(window)
+        near = np.convolve(change.astype(float), np.ones(2 * w + 1))[w:w + len(c)] > 0  # within w frames of one
         jerk_all.append(np.linalg.norm(np.diff(c[:, 0], n=3, axis=0), axis=-1) * fps**3)  # (T-3,)
         near_all.append(near[1:-2] | near[2:-1])
     jerk, near = np.concatenate(jerk_all), np.concatenate(near_all)
