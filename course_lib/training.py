@@ -19,6 +19,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import platform
 import random
 import tempfile
 import time
@@ -319,13 +320,22 @@ def _update_manifest(manifest_path: Path, name: str, entry: dict) -> None:
         lock.close()
 
 
+def training_environment() -> dict:
+    """Where a checkpoint was trained: the versions and the CPU's vector kernels that decide float rounding (a
+    long training amplifies rounding into another model, so the same command can give other weights elsewhere)."""
+    return {"python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
+            "machine": platform.machine(), "cpu_capability": torch.backends.cpu.get_cpu_capability()}
+
+
 def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, command: str,
                     metrics: dict | None = None, overwrite: bool = False,
-                    manifest: str | os.PathLike | None = None) -> dict:
+                    manifest: str | os.PathLike | None = None, environment: dict | None = None) -> dict:
     """Write ``{state_dict, config JSON, course_lib version}`` to ``path`` and record it in the manifest.
 
     config: the model's config dataclass.  command: the one shell command that reproduces this file.
-    manifest: defaults to ``MANIFEST.json`` next to ``path``.  Returns the manifest entry.
+    manifest: defaults to ``MANIFEST.json`` next to ``path``.  environment: the entry's "trained_on"; None (a
+    fresh training) records `training_environment()`, a re-save passes the entry's own ({} when unknown: no field).
+    Returns the manifest entry.
     """
     path = Path(path)
     if not dataclasses.is_dataclass(config) or isinstance(config, type):
@@ -352,6 +362,9 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
         "model_class": type(model).__name__, "command": command, "course_lib_version": __version__,
         "metrics": _jsonable(metrics or {}),
     }
+    trained_on = training_environment() if environment is None else environment
+    if trained_on:
+        entry["trained_on"] = _jsonable(trained_on)
     _update_manifest(mpath, _entry_name(path, mpath), entry)
     return entry
 
@@ -365,7 +378,8 @@ def record_metrics(path: str | os.PathLike, model_cls, config_cls, **metrics) ->
     mpath = _manifest_path(path, None)
     entry = _read_manifest(mpath)[_entry_name(path, mpath)]
     return save_checkpoint(model, model.config, path, command=entry["command"],
-                           metrics={**entry["metrics"], **metrics}, overwrite=True)
+                           metrics={**entry["metrics"], **metrics}, overwrite=True,
+                           environment=entry.get("trained_on", {}))
 
 
 def recorded_metrics(path: str | os.PathLike) -> dict:

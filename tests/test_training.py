@@ -9,7 +9,15 @@ import pytest
 import torch
 
 from course_lib.checksums import write_sidecar
-from course_lib.training import History, fit, load_checkpoint, save_checkpoint, seed_everything, sha256_file
+from course_lib.training import (
+    History,
+    fit,
+    load_checkpoint,
+    record_metrics,
+    save_checkpoint,
+    seed_everything,
+    sha256_file,
+)
 
 
 @dataclass
@@ -159,6 +167,24 @@ def test_checkpoint_round_trip_identical_outputs(tmp_path):
     assert loaded.config == config and not loaded.training
     x = torch.randn(5, 3)
     assert torch.equal(loaded(x), model(x))
+
+
+def test_manifest_records_where_a_checkpoint_was_trained_and_a_re_save_keeps_it(tmp_path):
+    """A fresh save records the training environment (torch version, CPU kernels); record_metrics keeps the
+    entry's own, and an entry saved before the field existed stays without one (unknown, not this machine)."""
+    model = TinyRegressor(TinyConfig())
+    path = tmp_path / "e.pt"
+    entry = save_checkpoint(model, TinyConfig(), path, command="make e")
+    assert entry["trained_on"]["torch"] == torch.__version__
+    assert entry["trained_on"]["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    manifest_path = tmp_path / "MANIFEST.json"
+    manifest = json.loads(manifest_path.read_text())
+    manifest["e"]["trained_on"] = {"torch": "0.0-elsewhere"}
+    manifest_path.write_text(json.dumps(manifest))
+    assert record_metrics(path, TinyRegressor, TinyConfig, mse=1.0)["trained_on"] == {"torch": "0.0-elsewhere"}
+    del manifest["e"]["trained_on"]
+    manifest_path.write_text(json.dumps(manifest))
+    assert "trained_on" not in record_metrics(path, TinyRegressor, TinyConfig, mse=2.0)
 
 
 def test_checkpoint_is_weights_only_loadable(tmp_path):

@@ -580,7 +580,8 @@ def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
     entry = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]
     model = load_models_rnn(checkpoints)
     return save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=entry["command"],
-                           metrics={**entry["metrics"], "results": results}, overwrite=True)
+                           metrics={**entry["metrics"], "results": results}, overwrite=True,
+                           environment=entry.get("trained_on", {}))
 
 
 def _every_20(hist) -> list:

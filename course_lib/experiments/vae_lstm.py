@@ -569,7 +569,7 @@ def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
     model = load_model("vae_lstm", checkpoints)
     metrics = {**entry["metrics"], "tables": {k: v for k, v in results.items() if k != "curves"}}
     return save_checkpoint(model, model.config, checkpoints / "vae_lstm.pt", command=entry["command"],
-                           metrics=metrics, overwrite=True)
+                           metrics=metrics, overwrite=True, environment=entry.get("trained_on", {}))
 
 
 def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
