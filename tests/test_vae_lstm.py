@@ -374,7 +374,6 @@ def test_path_error_sources_known_answers():
     assert r["path_error_m"] > 0.05 and r["exact"]["yaw rate"] < 1e-9
     assert r["exact"]["forward velocity"] == pytest.approx(r["path_error_m"])
     assert r["bias"]["yaw rate"] == pytest.approx(0.5) and r["bias"]["forward velocity"] == 0.0
-    # 0.5 sd of yaw rate for 240 frames at 60 fps turns the heading by 0.5 * std * 4 s
     # as integrate_root, frame t's heading sums the rates of frames 1..t: 0.5 sd of yaw rate turns the heading by
     # drift x t / 60 s by frame t, so drift x 239 / 60 at the last frame and drift x (60 s - 1) / 60 after s seconds,
     # and drift x 2 s on average over frames 1..239
@@ -436,8 +435,12 @@ def test_heading_loss_charges_a_slow_yaw_error_more_than_a_fast_one():
     s2 = m.config.obs_std ** 2
     torch.testing.assert_close(m.heading_loss(x, slow), torch.tensor(0.5 * 16 * 0.01 / s2))
     assert float(m.heading_loss(x, fast)) < 0.25 * float(m.heading_loss(x, slow))
+    batch = torch.randn(2, 16, 66)
     torch.manual_seed(3)
-    out = m.loss(torch.randn(2, 16, 66))
+    out = m.loss(batch)
     assert "heading" in out and float(out["heading"]) > 0
+    m.config.heading_weight = 0.0  # the same draws without the term: the loss falls by exactly 10 x heading
+    torch.manual_seed(3)
+    torch.testing.assert_close(out["loss"] - m.loss(batch)["loss"], 10.0 * out["heading"], rtol=1e-4, atol=1e-3)
     with pytest.raises(ValueError, match="heading_weight"):
         tiny(heading_weight=1.0, generation_weight=0.0)

@@ -237,12 +237,11 @@ def root_jerk_split(motions, fps: float | None = None, skeleton: Skeleton | None
         raise ValueError("root_jerk_split: clips need at least 4 frames for a third difference")
     if int(window) != window or window < 0:
         raise ValueError(f"root_jerk_split: window must be a whole number of frames >= 0, got {window!r}")
-    toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
+    toes, w = [skel.index("LeftToeBase"), skel.index("RightToeBase")], int(window)
     near_all, jerk_all = [], []
     for c in clips:
         low = c[:, toes, 1].argmin(-1)
         change = np.r_[False, low[1:] != low[:-1]]
-        w = int(window)
         near = np.convolve(change.astype(float), np.ones(2 * w + 1))[w:w + len(c)] > 0  # within w frames of one
         jerk_all.append(np.linalg.norm(np.diff(c[:, 0], n=3, axis=0), axis=-1) * fps**3)  # (T-3,)
         near_all.append(near[1:-2] | near[2:-1])

@@ -323,7 +323,7 @@ def path_error_sources(model, test_ds: WindowDataset, n_controls: int | None = N
             [np.zeros((len(pred), 1)), yaw_err[..., 1:].cumsum(-1).numpy() / fps], -1))))
     e, z = np.concatenate(errors), np.concatenate(spread)  # (controls * samples, T, 3)
     heading = np.concatenate(heading)
-    seconds = [s for s in range(1, int(heading.shape[1] / fps) + 1)]
+    seconds = range(1, int(heading.shape[1] / fps) + 1)
     return {"controls": n_controls, "path_error_m": float(np.mean(own)),
             "exact": {c: float(np.mean(v)) for c, v in exact.items()},
             "bias": dict(zip(CONTROL_CHANNELS, np.abs(e.mean(1)).mean(0).tolist(), strict=True)),
