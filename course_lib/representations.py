@@ -392,10 +392,32 @@ def _turn(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
     return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
 
 
-def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: float = 0.0) -> tuple[
-        torch.Tensor, torch.Tensor, torch.Tensor]:
+ANCHOR_RULES = ("lower", "contact")
+
+
+def _contact_anchor(bits: torch.Tensor, lower: torch.Tensor) -> torch.Tensor:
+    """Contact bits (..., T, 2) (raw, on above 0.5), the lower toe (..., T) -> the anchor of each step (..., T-1):
+    0 / 1 the left / right toe, 2 the root.  Step t's anchor follows frame t-1's bits: the one foot in contact;
+    with both in contact, step t-1's foot (the lower toe after a flight); with none (a running flight), the root.
+    So the anchor passes to a foot only when the other one lifts, and in the air the slip is the root's own
+    floor step (smooth), not the velocity of whichever swinging toe happens to be lower."""
+    on = bits > 0.5
+    only_one = on[..., 0] != on[..., 1]  # (..., T)
+    foot = on[..., 1].long()  # the foot in contact where only one is
+    none = ~(on[..., 0] | on[..., 1])
+    anchor, out = lower[..., 0], []
+    for t in range(bits.shape[-2] - 1):
+        both = torch.where(anchor == 2, lower[..., t], anchor)
+        anchor = torch.where(only_one[..., t], foot[..., t], torch.where(none[..., t], 2, both))
+        out.append(anchor)
+    return torch.stack(out, -1) if out else lower[..., :0]
+
+
+def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: float = 0.0,
+                   rule: str = "lower") -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """-> lowest toe height above the root (..., T), the anchor toe's floor-frame (x, z) on frames t-1 and t
-    (..., T-1, 2) each: the anchor of step t is the toe that is lower on frame t-1.
+    (..., T-1, 2) each: with rule "lower" the anchor of step t is the toe that is lower on frame t-1; with
+    "contact" it follows the contact bits (`_contact_anchor`).
 
     tau > 0 (metres) makes the anchor soft: both toes weighted by softmax(-height / tau) of their heights above the
     root, the weights of frame t-1 for step t's anchor point and those of frame t for the height; tau -> 0 is the hard
@@ -412,18 +434,28 @@ def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: flo
         cur = (wp * toes[..., 1:, :, :]).sum(-2)[..., [0, 2]]
         return (w * toes[..., 1]).sum(-1), prev, cur
     low = toes[..., 1].argmin(-1, keepdim=True)  # (..., T, 1)
-    pick = low[..., :-1, :, None].expand(*low.shape[:-2], low.shape[-2] - 1, 1, 3)  # (..., T-1, 1, 3)
+    height = toes[..., 1].min(-1).values
+    if rule == "contact":  # the anchor points: both toes and the root, whose floor-frame (x, z) is 0
+        toes = torch.cat((toes, torch.zeros_like(toes[..., :1, :])), -2)
+        step = _contact_anchor(features[..., -2:], low[..., 0])[..., None]
+    else:
+        step = low[..., :-1, :]
+    pick = step[..., None].expand(*low.shape[:-2], low.shape[-2] - 1, 1, 3)  # (..., T-1, 1, 3)
     prev = toes[..., :-1, :, :].gather(-2, pick)[..., 0, :][..., [0, 2]]  # anchor on t-1
     cur = toes[..., 1:, :, :].gather(-2, pick)[..., 0, :][..., [0, 2]]  # the same toe on t
-    return toes[..., 1].min(-1).values, prev, cur
+    return height, prev, cur
 
 
-def _check_tau(tau: float) -> None:
+def _check_tau(tau: float, rule: str = "lower") -> None:
     if not (np.isfinite(tau) and tau >= 0):
         raise ValueError(f"anchor tau must be a finite number of metres >= 0 (0: the hard anchor), got {tau!r}")
+    if rule not in ANCHOR_RULES or (tau > 0 and rule != "lower"):
+        raise ValueError(f"anchor rule must be one of {ANCHOR_RULES} (a soft anchor, tau > 0, only with 'lower'), "
+                         f"got {rule!r} with tau {tau}")
 
 
-def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0) -> torch.Tensor:
+def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0,
+                   rule: str = "lower") -> torch.Tensor:
     """Raw state features (..., T, D) -> the same with the root tied to the feet (lesson 03's RNN reads these):
 
     column 3, the root height, becomes the lower toe's height above the floor, h_t = y_root + min_toe y_rel
@@ -431,22 +463,25 @@ def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None, tau
     of the anchor toe (the lower one on frame t-1), s_t = R_y(dyaw_t) p_t + d_t - p_{t-1} with p its floor-frame
     (x, z) (the toe's own displacement, as `refiner.end_effector_features`; about 0 while it is planted).
     Row 0 keeps d_0 (decoders ignore it).  Exactly inverted by `unanchor_feet` on the same skeleton and tau.
-    tau > 0 (metres): the soft anchor of `_feet_geometry`, both toes weighted by their heights."""
+    tau > 0 (metres): the soft anchor of `_feet_geometry`, both toes weighted by their heights; rule "contact":
+    the anchor follows the contact bits (columns -2, -1) instead of the lower toe (`_contact_anchor`)."""
     _check_state_tensor(features, skeleton)
-    _check_tau(tau)
-    low, prev, cur = _feet_geometry(features, skeleton, offsets, tau)
+    _check_tau(tau, rule)
+    low, prev, cur = _feet_geometry(features, skeleton, offsets, tau, rule)
     out = features.clone()
     out[..., 3] = features[..., 3] + low
     out[..., 1:, 0:2] = _turn(cur, features[..., 1:, 2]) + features[..., 1:, 0:2] - prev
     return out
 
 
-def unanchor_feet(anchored: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0) -> torch.Tensor:
+def unanchor_feet(anchored: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0,
+                  rule: str = "lower") -> torch.Tensor:
     """The inverse of `anchor_on_feet`: (..., T, D) feet-anchored features -> raw state features, on the skeleton
-    (offsets (J, 3), or (..., J, 3) one per motion) that decides where the toes are, with the same tau."""
+    (offsets (J, 3), or (..., J, 3) one per motion) that decides where the toes are, with the same tau and rule
+    (anchoring leaves the pose and the contact bits as they are, so both sides pick the same anchor)."""
     _check_state_tensor(anchored, skeleton, "anchored")
-    _check_tau(tau)
-    low, prev, cur = _feet_geometry(anchored, skeleton, offsets, tau)
+    _check_tau(tau, rule)
+    low, prev, cur = _feet_geometry(anchored, skeleton, offsets, tau, rule)
     out = anchored.clone()
     out[..., 3] = anchored[..., 3] - low
     out[..., 1:, 0:2] = anchored[..., 1:, 0:2] + prev - _turn(cur, anchored[..., 1:, 2])

@@ -92,3 +92,35 @@ def test_soft_anchor_round_trip_hard_limit_and_weights(walks):
     for bad in (-0.01, float("nan")):
         with pytest.raises(ValueError, match="tau"):
             anchor_on_feet(feats(m), m.skeleton, tau=bad)
+
+
+def test_contact_rule_follows_the_bits_and_the_root_in_a_flight(walks):
+    """rule "contact": step t's anchor is the one foot in contact on frame t-1, the previous foot while both are
+    (after a flight: the lower toe), the root while none is; checked against each toe's own floor-frame slip
+    recomputed from the joint positions, and the root's own step d_t in a flight."""
+    m = walks[1]
+    f = feats(m).clone()
+    T = len(f)
+    pattern = [(1, 0), (1, 1), (0, 1), (1, 1), (0, 0), (0, 0), (1, 1), (1, 0)]  # frames 0..7, then repeated
+    f[:, -2:] = torch.tensor([pattern[t % len(pattern)] for t in range(T)], dtype=f.dtype)
+    a = anchor_on_feet(f, m.skeleton, rule="contact")
+    assert (unanchor_feet(a, m.skeleton, rule="contact") - f).abs().max() < 1e-12
+    assert torch.equal(a[:, 2:3], f[:, 2:3]) and torch.equal(a[:, 4:], f[:, 4:])
+    pos = m.positions()
+    toes = pos[:, [m.skeleton.index("LeftToeBase"), m.skeleton.index("RightToeBase")]]
+    heading = root_start(m)[2] + np.cumsum(np.r_[0.0, f[1:, 2].numpy()])
+    c, s = np.cos(heading), np.sin(heading)
+    dw = toes[1:, :, [0, 2]] - toes[:-1, :, [0, 2]]
+    own = np.stack((c[:-1, None] * dw[..., 0] - s[:-1, None] * dw[..., 1],
+                    s[:-1, None] * dw[..., 0] + c[:-1, None] * dw[..., 1]), -1)  # (T-1, 2 toes, 2)
+    lower = toes[:, :, 1].argmin(-1)
+    expected = {0: 0, 1: 0, 2: 1, 3: 1, 4: "root", 5: "root", 6: "lower", 7: 0}  # step t+1 <- frame t's bits
+    for t in range(1, T - 1):
+        e = expected[t % len(pattern)]
+        e = int(lower[t]) if e == "lower" else e
+        want = f[t + 1, :2].numpy() if e == "root" else own[t, e]
+        np.testing.assert_allclose(a[t + 1, :2].numpy(), want, atol=1e-9, err_msg=f"step {t + 1}")
+    with pytest.raises(ValueError, match="rule"):
+        anchor_on_feet(f, m.skeleton, tau=0.02, rule="contact")
+    with pytest.raises(ValueError, match="rule"):
+        anchor_on_feet(f, m.skeleton, rule="heel")

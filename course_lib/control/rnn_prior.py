@@ -88,6 +88,7 @@ class RnnPrior:
         # what the model reads and which columns it copies (older GmmRnn versions: state features, none)
         self.features = getattr(cfg, "features", "state_features")
         self.anchor_tau = getattr(cfg, "anchor_tau", 0.0)
+        self.anchor_rule = getattr(cfg, "anchor_rule", "lower")
         self.fixed_dims = tuple(getattr(cfg, "fixed_dims", ()))
         buf_mean, buf_std = getattr(self.model, "feature_mean", None), getattr(self.model, "feature_std", None)
         identity = buf_mean is None or bool((buf_mean == 0).all() and (buf_std == 1).all())
@@ -124,7 +125,7 @@ class RnnPrior:
         if self.features == "feet_anchored":
             from course_lib import representations
 
-            raw = representations.anchor_on_feet(raw, skeleton, tau=self.anchor_tau)
+            raw = representations.anchor_on_feet(raw, skeleton, tau=self.anchor_tau, rule=self.anchor_rule)
         mean, std = self.model_norm
         return ((raw - mean) / std).float()
 
@@ -135,7 +136,7 @@ class RnnPrior:
         if self.features == "feet_anchored":
             from course_lib import representations
 
-            raw = representations.unanchor_feet(raw, skeleton, tau=self.anchor_tau)
+            raw = representations.unanchor_feet(raw, skeleton, tau=self.anchor_tau, rule=self.anchor_rule)
         raw = self.clean(raw)
         raw[..., self.contact_cols] = raw[..., self.contact_cols].round()  # 0/1 bits, not 2e-8 (float32)
         return raw

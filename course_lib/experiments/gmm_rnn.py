@@ -60,6 +60,7 @@ class Lesson03Spec:
     # toe's slip, the root height as the lower toe's height) or "state_features" (eq. 3 as it is)
     rnn_features: str = "feet_anchored"
     rnn_anchor_tau: float = 0.0  # 0: the anchor is the lower toe; > 0 (m): both toes weighted by height (soft)
+    rnn_anchor_rule: str = "lower"  # "contact": the anchor follows the contact bits, the root in a flight
     # columns with absolute means: the slip, the toe height, pitch and roll; dyaw and the joint angles residual
     rnn_absolute_dims: tuple = (0, 1, 3, 4, 5)
     rnn_fixed_dims: bool = True  # the columns the data never vary are not modelled
@@ -144,10 +145,11 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
     from course_lib.training import History, fit
 
-    features, rnn_stats = rnn_features(ds, spec.rnn_features, spec.rnn_anchor_tau)
+    features, rnn_stats = rnn_features(ds, spec.rnn_features, spec.rnn_anchor_tau, spec.rnn_anchor_rule)
     fixed = tuple(int(c) for c in np.flatnonzero(FixedDofs.from_stats(*rnn_stats).mask)) if spec.rnn_fixed_dims else ()
     config = config or GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims,
                                         features=spec.rnn_features, anchor_tau=spec.rnn_anchor_tau,
+                                        anchor_rule=spec.rnn_anchor_rule,
                                         fixed_dims=fixed,
                                         bernoulli_contacts=spec.rnn_bernoulli_contacts)
     torch.manual_seed(seed)
@@ -174,19 +176,25 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     return model, hist, ft
 
 
-def rnn_features(ds: WindowDataset, kind: str = "feet_anchored", tau: float = 0.0) -> tuple[list[np.ndarray], tuple]:
+def rnn_features(ds: WindowDataset, kind: str = "feet_anchored", tau: float = 0.0,
+                 rule: str = "lower") -> tuple[list[np.ndarray], tuple]:
     """ds's clips in the RNN's features -> (normalised (T_i, D) float32 arrays, their (mean, std)); "state_features"
     returns ds's own.  "feet_anchored": each clip anchored on its own skeleton (representations.anchor_on_feet,
-    with its tau)."""
+    with its tau and rule)."""
     from course_lib.datasets import compute_stats
     from course_lib.representations import anchor_on_feet
 
     if kind == "state_features":
         return ds.features, ds.stats
-    raw = [anchor_on_feet(torch.from_numpy(ds.denormalize(f.astype(np.float64))), m.skeleton, tau=tau).numpy()
+    raw = [anchor_on_feet(torch.from_numpy(ds.denormalize(f.astype(np.float64))), m.skeleton, tau=tau,
+                           rule=rule).numpy()
            for f, m in zip(ds.features, ds.clips, strict=True)]
     mean, std = compute_stats(raw)
     return [((r - mean) / std).astype(np.float32) for r in raw], (mean, std)
+
+
+def _rule(model) -> str:
+    return getattr(model.config, "anchor_rule", "lower")  # checkpoints saved before the rule existed: "lower"
 
 
 def _rnn_stats(model) -> tuple[torch.Tensor, torch.Tensor]:
@@ -201,7 +209,7 @@ def to_rnn(x: torch.Tensor, stats, model, offsets: torch.Tensor) -> torch.Tensor
 
     raw = x.double() * torch.as_tensor(stats[1]) + torch.as_tensor(stats[0])
     if model.config.features == "feet_anchored":
-        raw = anchor_on_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau)
+        raw = anchor_on_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau, _rule(model))
     mean, std = _rnn_stats(model)
     return ((raw - mean) / std).float()
 
@@ -214,7 +222,7 @@ def from_rnn(y: torch.Tensor, stats, model, offsets: torch.Tensor) -> torch.Tens
     mean, std = _rnn_stats(model)
     raw = y.double() * std + mean
     if model.config.features == "feet_anchored":
-        raw = unanchor_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau)
+        raw = unanchor_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau, _rule(model))
     return ((raw - torch.as_tensor(stats[0])) / torch.as_tensor(stats[1])).float()
 
 

@@ -93,6 +93,7 @@ class GmmRnnConfig:
     absolute_dims: tuple[int, ...] = ()  # with residual=True: columns whose means stay absolute, mu_i = mu_hat_i
     features: str = "state_features"  # what x is: "state_features" (eq. 3) or "feet_anchored" (lesson 03's)
     anchor_tau: float = 0.0  # feet_anchored: 0 the lower toe, > 0 (m) both toes weighted (anchor_on_feet's tau)
+    anchor_rule: str = "lower"  # feet_anchored: "lower" toe, or "contact" (the bits; the root in flight)
     fixed_dims: tuple[int, ...] = ()  # columns the data never vary: not modelled, copied from x_t (see "differs")
     bernoulli_contacts: bool = False  # contact bits from a Bernoulli head, not from the Gaussians (see "differs")
 
@@ -130,6 +131,10 @@ class GmmRnnConfig:
         if not (np.isfinite(self.anchor_tau) and self.anchor_tau >= 0) or (self.anchor_tau and
                                                                             self.features != "feet_anchored"):
             raise ValueError(f"GmmRnnConfig: anchor_tau must be >= 0 (m), and > 0 only with feet_anchored: {self}")
+        if self.anchor_rule not in ("lower", "contact") or (self.anchor_rule != "lower" and (
+                self.anchor_tau or self.features != "feet_anchored")):
+            raise ValueError(f"GmmRnnConfig: anchor_rule must be 'lower' or 'contact' ('contact' only with "
+                             f"feet_anchored and tau 0): {self}")
         self.fixed_dims = tuple(int(c) for c in self.fixed_dims)
         if any(not 0 <= c < self.dim for c in self.fixed_dims) or set(self.fixed_dims) & set(self.contact_dims):
             raise ValueError(f"GmmRnnConfig: fixed_dims {self.fixed_dims} must lie in 0..{self.dim - 1}, off the "
