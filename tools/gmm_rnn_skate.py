@@ -56,10 +56,10 @@ VARIANTS = {
     # anchor does not jump from toe to toe at a change of support (where the shipped RNN's root jerks most)
     "anchored_soft_2cm": {"rnn_anchor_tau": 0.02},
     "anchored_soft_1cm": {"rnn_anchor_tau": 0.01},
-    "shipped_recipe": {},
+    "shipped_recipe": {},  # Lesson03Spec() as it is (what `python -m course_lib.reproduce gmm_rnn` trains)
     # the anchor follows the contact bits, and in a flight the root (the lower toe's slip in a flight, the velocity
     # of whichever swinging toe is lower, held 93 % of the shipped RNN's teacher-forced slip error)
-    "contact_anchor": {"rnn_anchor_rule": "contact"},  # Lesson03Spec() as it is (what `python -m course_lib.reproduce gmm_rnn` trains)
+    "contact_anchor": {"rnn_anchor_rule": "contact"},
     "noise02_means": {"rnn_noise": 0.2, "sample_angle_noise": 0.0, "sample_root_noise": 0.0,
                       "_model": "anchored_noise02"},
 }
