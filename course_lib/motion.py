@@ -149,21 +149,21 @@ def trusted_contacts(bits, toe_heights, max_above: float = STANCE_MAX_ABOVE):
     return bits & (toe_heights <= lower + max_above)
 
 
-def foot_contacts(positions: np.ndarray, skeleton: Skeleton, fps: float) -> np.ndarray:
+def foot_contacts(positions: np.ndarray, skeleton: Skeleton, fps: float, speed: float = CONTACT_SPEED) -> np.ndarray:
     """positions (..., T, J, 3) -> (..., T, 2) bool contacts (left, right).
 
     A foot touches the floor on a frame where its ankle (`Foot`) or toe joint
-    (`ToeBase`) is below CONTACT_HEIGHT and moves slower than CONTACT_SPEED
-    (central differences; one-sided at the ends).
+    (`ToeBase`) is below CONTACT_HEIGHT and moves slower than ``speed`` (m/s, default CONTACT_SPEED;
+    central differences; one-sided at the ends).
     """
     positions = np.asarray(positions)
     vel = np.gradient(positions, axis=-3) * fps if positions.shape[-3] > 1 else np.zeros_like(positions)
-    speed = np.linalg.norm(vel, axis=-1)  # (..., T, J)
+    joint_speed = np.linalg.norm(vel, axis=-1)  # (..., T, J)
     out = []
     for side in ("Left", "Right"):
         touch = np.zeros(positions.shape[:-2], dtype=bool)
         for part, h in CONTACT_HEIGHT.items():
             j = skeleton.index(side + part)
-            touch |= (positions[..., j, 1] < h) & (speed[..., j] < CONTACT_SPEED)
+            touch |= (positions[..., j, 1] < h) & (joint_speed[..., j] < speed)
         out.append(touch)
     return np.stack(out, -1)

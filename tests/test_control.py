@@ -324,6 +324,8 @@ def test_denoise_errors(prior, walk):
 
     with pytest.raises(ValueError, match="contact_bits"):
         denoise(walk, prior=prior, config=DenoiseConfig(contact_bits="clean", iterations=0, initial_state_steps=0))
+    with pytest.raises(ValueError, match="stance_speed"):
+        denoise(walk, prior=prior, config=DenoiseConfig(stance_speed=0.0, iterations=0, initial_state_steps=0))
 
 
 def test_arc_position_and_polyline_between_known_answers():

@@ -258,6 +258,7 @@ def test_contacts_on_a_constructed_case(sk):
 
     glide = root + np.arange(T)[:, None] / 30.0 * np.array([1.0, 0, 0])
     assert not Motion(rest, glide, sk, 30.0).contacts().any()
+    assert foot_contacts(Motion(rest, glide, sk, 30.0).positions(), sk, 30.0, speed=1.5).all()  # a laxer threshold
     # foot_contacts on batched positions agrees with the per-clip result
     both = np.stack([Motion(rest, root, sk, 30.0).positions(), pos])
     np.testing.assert_array_equal(foot_contacts(both, sk, 30.0)[1], c)

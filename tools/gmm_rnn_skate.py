@@ -60,6 +60,8 @@ VARIANTS = {
     # the anchor follows the contact bits, and in a flight the root (the lower toe's slip in a flight, the velocity
     # of whichever swinging toe is lower, held 93 % of the shipped RNN's teacher-forced slip error)
     "contact_anchor": {"rnn_anchor_rule": "contact"},
+    # twice the widths: the root jerk is the per-frame error of the stance toe's position relative to the root
+    "wide256": {"rnn_width": 256},
     "noise02_means": {"rnn_noise": 0.2, "sample_angle_noise": 0.0, "sample_root_noise": 0.0,
                       "_model": "anchored_noise02"},
 }

@@ -69,6 +69,8 @@ class DenoiseConfig:
     rounds: int = 3  # fixed-history rounds (see "differs"); 0: eq. (15) with gradients through the history
     weights: dict = field(default_factory=dict)  # a factor per term of eq. (19) ("prior", "contact", ...); {}: all 1
     contact_bits: str = "input"  # eq. (18)'s stance bits: "input", "start" (the start's), "rounds" (see "differs")
+    stance_speed: float = 0.3  # m/s: a foot below its contact height and slower than this is in stance, for the
+    # bits taken from the start or an estimate (motion.foot_contacts; 0.3 = its default, CONTACT_SPEED)
     held_frames: str = "fill"  # dropped frames: "fill" (interpolated in the start, out of eq. 25) or "keep"
     first_frame: str = "input"  # frame 0 and the root's start: "input" (as given) or "start" (the search start's)
     start_cutoff_hz: float | None = 4.0  # Hz: search from the input low-passed so (lowpass.py); None: the input
@@ -176,6 +178,14 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
     return problem
 
 
+def _stance_bits(motion: Motion, speed: float) -> torch.Tensor:
+    """-> the motion's contact bits of frames 1..T-1 (1, T-1, 2) at the stance speed threshold ``speed``."""
+    from course_lib.motion import foot_contacts
+
+    bits = foot_contacts(motion.positions(), motion.skeleton, motion.fps, speed=speed)
+    return torch.from_numpy(bits[None, 1:].astype(np.float64))
+
+
 def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
             config: DenoiseConfig | None = None, start: Motion | None = None) -> Motion:
     """A noisy motion (at the RNN's 30 fps, >= 3 frames) -> the filtered motion, same skeleton and length.
@@ -195,6 +205,8 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
                                  ("held_frames", config.held_frames, HELD_FRAMES)):
         if value not in allowed:
             raise ValueError(f"denoise: {name} must be one of {allowed}, got {value!r}")
+    if not (np.isfinite(config.stance_speed) and config.stance_speed > 0):
+        raise ValueError(f"denoise: stance_speed must be a speed > 0 (m/s), got {config.stance_speed!r}")
     if start is None:
         base = fill_held(motion) if config.held_frames == "fill" else motion
         if config.start_cutoff_hz is not None and len(motion) >= BUTTER_MIN_FRAMES:
@@ -209,15 +221,14 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
     if start is not None:
         s0 = prior.clean(torch.from_numpy(encode_state_features(start)))[None]
     if config.contact_bits != "input":
-        bits = s0[:, 1:, prior.contact_cols]
+        bits = _stance_bits(start if start is not None else motion, config.stance_speed)
     z, d = energy.to_z(s0[:, 1:]), torch.zeros(1, len(motion) - 1, prior.dim, dtype=torch.float64)
     lb = LbfgsConfig(iterations=config.iterations)
     if not config.rounds:
         (z, d), _ = minimise_lbfgs(lambda z_, d_: energy.terms(energy.frames(z_, bits), d_)["total"].sum(), [z, d], lb)
     for k in range(config.rounds):  # each frame's mixture from the current estimate of the frames before it
         if k and config.contact_bits == "rounds":  # the stance bits of the current estimate's pose
-            est = encode_state_features(problem.motion(energy.frames(z, bits), motion))
-            bits = torch.from_numpy(est[None, 1:, prior.contact_cols])
+            bits = _stance_bits(problem.motion(energy.frames(z, bits), motion), config.stance_speed)
         params = problem.mixtures(energy.frames(z, bits))
 
         def total(z_, params=params, bits=bits):

@@ -68,6 +68,7 @@ class Lesson03Spec:
     contact_method: str = "legs"  # "legs": root + leg angles (plant_feet); "root": the root alone (enforce_contacts)
     contact_smooth: int = 5  # frames over which the "root" contact handling's corrections are averaged
     window_stride: int = 5  # frames between training windows
+    rnn_width: int = 128  # FC, LSTM and output widths of the RNN (the paper: 500)
     rnn_noise: float = 0.1  # sd of the input noise, normalised units (sec. 4.1.3: 0.05; tools/gmm_rnn_skate.py)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
     refiner_iterations: int = 3000  # at most this many adversarial rounds after the warm-up (sec. 4.2.2) ...
@@ -147,7 +148,8 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
 
     features, rnn_stats = rnn_features(ds, spec.rnn_features, spec.rnn_anchor_tau, spec.rnn_anchor_rule)
     fixed = tuple(int(c) for c in np.flatnonzero(FixedDofs.from_stats(*rnn_stats).mask)) if spec.rnn_fixed_dims else ()
-    config = config or GmmRnnConfig.cpu(fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims,
+    config = config or GmmRnnConfig.cpu(fc_width=spec.rnn_width, lstm_width=spec.rnn_width, out_width=spec.rnn_width,
+                                        fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims,
                                         features=spec.rnn_features, anchor_tau=spec.rnn_anchor_tau,
                                         anchor_rule=spec.rnn_anchor_rule,
                                         fixed_dims=fixed,
