@@ -413,6 +413,15 @@ def _contact_anchor(bits: torch.Tensor, lower: torch.Tensor) -> torch.Tensor:
     return torch.stack(out, -1) if out else lower[..., :0]
 
 
+def toes_relative(features: torch.Tensor, skeleton: Skeleton, offsets=None) -> torch.Tensor:
+    """Raw state features (..., T, D) -> both toes (left, right) relative to the root, in each frame's floor frame
+    (..., T, 2, 3): FK with the root height left out, so the pose alone decides where the toes sit."""
+    flat = features.clone()
+    flat[..., 3] = 0.0
+    rel = local_positions(flat, skeleton, offsets)  # (..., T, J, 3)
+    return rel[..., [skeleton.index("LeftToeBase"), skeleton.index("RightToeBase")], :]
+
+
 def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: float = 0.0,
                    rule: str = "lower") -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """-> lowest toe height above the root (..., T), the anchor toe's floor-frame (x, z) on frames t-1 and t
@@ -423,10 +432,7 @@ def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: flo
     root, the weights of frame t-1 for step t's anchor point and those of frame t for the height; tau -> 0 is the hard
     choice.  A hard anchor jumps from one toe to the other, so the slip must jump with it at every change of support;
     a soft one moves between the toes over the frames both are near the floor."""
-    flat = features.clone()
-    flat[..., 3] = 0.0  # FK relative to the root's height: the pose alone decides the feet
-    rel = local_positions(flat, skeleton, offsets)  # (..., T, J, 3)
-    toes = rel[..., [skeleton.index("LeftToeBase"), skeleton.index("RightToeBase")], :]  # (..., T, 2, 3)
+    toes = toes_relative(features, skeleton, offsets)  # (..., T, 2, 3)
     if tau > 0:
         w = torch.softmax(-toes[..., 1] / tau, dim=-1)  # (..., T, 2)
         wp = w[..., :-1, :, None]  # frame t-1's weights, for both ends of step t

@@ -23,13 +23,13 @@ from course_lib.evaluation.contacts import skate_sources
 from course_lib.experiments import control as C
 from course_lib.experiments import gmm_rnn as X
 from course_lib.models.contact_cleanup import plant_feet
-from course_lib.motion import foot_contacts
+from course_lib.motion import CONTACT_SPEED, foot_contacts
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 SPEED = 0.6  # m/s, the laxer stance threshold for the low-passed start
 
 
-def bits_of(m, speed: float = 0.3) -> np.ndarray:
+def bits_of(m, speed: float = CONTACT_SPEED) -> np.ndarray:
     return foot_contacts(m.positions(), m.skeleton, m.fps, speed=speed)
 
 

@@ -47,7 +47,7 @@ from course_lib.control.kinematics import integrate_root
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.window import WindowEnergy
-from course_lib.motion import Motion
+from course_lib.motion import CONTACT_SPEED, Motion
 
 __all__ = ["CONTACT_BITS", "FIRST_FRAME", "HELD_FRAMES", "DenoiseConfig",
            "DenoiseProblem", "denoise", "denoise_problem"]
@@ -69,8 +69,8 @@ class DenoiseConfig:
     rounds: int = 3  # fixed-history rounds (see "differs"); 0: eq. (15) with gradients through the history
     weights: dict = field(default_factory=dict)  # a factor per term of eq. (19) ("prior", "contact", ...); {}: all 1
     contact_bits: str = "input"  # eq. (18)'s stance bits: "input", "start" (the start's), "rounds" (see "differs")
-    stance_speed: float = 0.3  # m/s: a foot below its contact height and slower than this is in stance, for the
-    # bits taken from the start or an estimate (motion.foot_contacts; 0.3 = its default, CONTACT_SPEED)
+    stance_speed: float = CONTACT_SPEED  # m/s: a foot below its contact height and slower than this is in stance,
+    # for the bits taken from the start or an estimate (motion.foot_contacts)
     held_frames: str = "fill"  # dropped frames: "fill" (interpolated in the start, out of eq. 25) or "keep"
     first_frame: str = "input"  # frame 0 and the root's start: "input" (as given) or "start" (the search start's)
     start_cutoff_hz: float | None = 4.0  # Hz: search from the input low-passed so (lowpass.py); None: the input

@@ -195,10 +195,6 @@ def rnn_features(ds: WindowDataset, kind: str = "feet_anchored", tau: float = 0.
     return [((r - mean) / std).astype(np.float32) for r in raw], (mean, std)
 
 
-def _rule(model) -> str:
-    return getattr(model.config, "anchor_rule", "lower")  # checkpoints saved before the rule existed: "lower"
-
-
 def _rnn_stats(model) -> tuple[torch.Tensor, torch.Tensor]:
     return model.feature_mean.double(), model.feature_std.double()
 
@@ -211,7 +207,8 @@ def to_rnn(x: torch.Tensor, stats, model, offsets: torch.Tensor) -> torch.Tensor
 
     raw = x.double() * torch.as_tensor(stats[1]) + torch.as_tensor(stats[0])
     if model.config.features == "feet_anchored":
-        raw = anchor_on_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau, _rule(model))
+        raw = anchor_on_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau,
+                             model.config.anchor_rule)
     mean, std = _rnn_stats(model)
     return ((raw - mean) / std).float()
 
@@ -224,7 +221,8 @@ def from_rnn(y: torch.Tensor, stats, model, offsets: torch.Tensor) -> torch.Tens
     mean, std = _rnn_stats(model)
     raw = y.double() * std + mean
     if model.config.features == "feet_anchored":
-        raw = unanchor_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau, _rule(model))
+        raw = unanchor_feet(raw, Skeleton.canonical(), offsets.double(), model.config.anchor_tau,
+                             model.config.anchor_rule)
     return ((raw - torch.as_tensor(stats[0])) / torch.as_tensor(stats[1])).float()
 
 

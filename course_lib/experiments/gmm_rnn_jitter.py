@@ -18,19 +18,15 @@ import numpy as np
 import torch
 
 from course_lib.motion import Motion
-from course_lib.representations import encode_state_features, local_positions
+from course_lib.representations import encode_state_features, toes_relative
 from course_lib.skeleton import Skeleton
 
 POSE_COLUMNS = (4, 5)  # the root's pitch and roll; the joint angles are columns 6 .. D-3
-TOES = ("LeftToeBase", "RightToeBase")
 
 
 def _toes_relative(raw: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:
-    """Raw state features (N, T, D) -> both toes relative to the root, in the floor frame (N, T, 2, 3)."""
-    sk = Skeleton.canonical()
-    flat = raw.clone()
-    flat[..., 3] = 0.0  # the root height moves both; only the pose decides where the toes sit relative to it
-    return local_positions(flat, sk, offsets)[..., [sk.index(t) for t in TOES], :]
+    """Raw state features (N, T, D) on skeletons offsets (N, J, 3) -> both toes relative to the root (N, T, 2, 3)."""
+    return toes_relative(raw, Skeleton.canonical(), offsets)
 
 
 def toe_error_jerk(pred: torch.Tensor, true: torch.Tensor, offsets: torch.Tensor, fps: float) -> dict:
