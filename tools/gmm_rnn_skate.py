@@ -75,7 +75,8 @@ def _base():
     return Lesson03Spec(rnn_width=128)
 
 
-BASE = _base()  # every variant overrides the study's base: the recipe shipped until stop 28, its widths (128) spelled out
+# every variant overrides the study's base: the recipe shipped until stop 28, its widths (128) spelled out
+BASE = _base()
 
 
 def measure(model, test, stats, spec, seed: int = 0) -> dict:
