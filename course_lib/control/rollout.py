@@ -36,13 +36,15 @@ def draw_noise(n: int, frames: int, prior: RnnPrior, generator: torch.Generator 
 
 
 def rollout(prior: RnnPrior, prev: torch.Tensor, state, eps: torch.Tensor, gumbel: torch.Tensor,
-            skeleton: Skeleton, d: torch.Tensor | None = None, bias: float = 0.0):
+            skeleton: Skeleton, d: torch.Tensor | None = None, bias: float = 0.0,
+            prev_model: torch.Tensor | None = None):
     """prev (N, P, D) raw known frames, state (before prev's last frame), eps (N, T, D), gumbel (N, T, M),
     d (N, T, D) input noise or None -> (raw frames (N, T, D) float64, prior -log p (N,) of eq. 15, state after
-    reading prev's last frame and every frame but the last)."""
+    reading prev's last frame and every frame but the last).  prev_model: ``prior.to_model(prev[:1], skeleton)``
+    if the caller already has it (it is the same for every rollout from one prev)."""
     model, c = prior.model, prior.model.config
     N, T = eps.shape[:2]
-    y_prev = prior.to_model(prev, skeleton)  # (N, P, D)
+    y_prev = prior.to_model(prev, skeleton) if prev_model is None else prev_model.expand(N, -1, -1)  # (N, P, D)
     state = expand_state(state, N)
     mean, std = (s.float() for s in prior.model_norm)
     cols = list(c.contact_dims)
@@ -51,7 +53,7 @@ def rollout(prior: RnnPrior, prev: torch.Tensor, state, eps: torch.Tensor, gumbe
     if prior.features == "state_features" and prior.fixed.any():
         fixed = torch.from_numpy(prior.fixed)
         const = ((torch.from_numpy(prior.mean) - prior.model_norm[0]) / prior.model_norm[1]).float()[fixed]
-    x, ys, nll = y_prev[:, -1], [], torch.zeros(N, dtype=torch.float64)
+    x, ys, steps, nll = y_prev[:, -1], [], [], torch.zeros(N, dtype=torch.float64)
     scale = torch.exp(torch.tensor(-float(bias)))
     for t in range(T):
         inp = x if d is None else x + d[:, t].float()
@@ -69,8 +71,10 @@ def rollout(prior: RnnPrior, prev: torch.Tensor, state, eps: torch.Tensor, gumbe
             y[:, list(prior.fixed_dims)] = x[:, list(prior.fixed_dims)]
         if fixed is not None:
             y[:, fixed] = const
-        nll = nll - prior.log_prob(y, p).double()  # -log p(s_i | s_<i, d)   -- eq. (15), (8)
         ys.append(y)
+        steps.append(p)
         x = y
-    raw = prior.from_model(torch.cat((y_prev, torch.stack(ys, 1)), 1), skeleton)[:, prev.shape[1]:]
+    y_all = torch.stack(ys, 1)  # (N, T, D); every frame's -log p(s_i | s_<i, d) at once   -- eq. (15), (8)
+    nll = nll - prior.log_prob(y_all, {k: torch.stack([p[k] for p in steps], 1) for k in steps[0]}).double().sum(1)
+    raw = prior.from_model(torch.cat((y_prev, y_all), 1), skeleton)[:, prev.shape[1]:]
     return raw, nll, state

@@ -55,6 +55,7 @@ class WindowEnergy:
         self.mean = torch.from_numpy(self.prior.mean)
         self.std = torch.from_numpy(self.prior.std)
         self.free = torch.from_numpy(self.prior.free)
+        self.prev_model = self.prior.to_model(self.prev, self.skeleton)  # (1, P, D): the same for every rollout
 
     @classmethod
     def for_motion(cls, prior: RnnPrior, motion, control: Control | None = None, **kw):
@@ -111,7 +112,8 @@ class WindowEnergy:
 
         N = len(eps)
         raw, nll, self.last_state = rollout(self.prior, self.prev.expand(N, -1, -1), expand_state(self.state, N),
-                                            eps, gumbel, self.skeleton, d, bias)  # last_state: after frames[:-1]
+                                            eps, gumbel, self.skeleton, d, bias, self.prev_model)
+        # last_state: after frames[:-1]
         return raw, self.terms(raw, d, nll)
 
     def end_pose(self, raw: torch.Tensor) -> torch.Tensor:

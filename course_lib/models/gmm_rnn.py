@@ -64,6 +64,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from course_lib.models.lstm_step import lstm_step
+
 __all__ = ["GmmRnn", "GmmRnnConfig", "mixture_log_prob"]
 
 LOG_2PI = math.log(2 * math.pi)
@@ -201,7 +203,11 @@ class GmmRnn(nn.Module):
         N, T, _ = x.shape
         M, D = self.config.mixtures, self.config.dim
         a = F.relu(self.fc2(F.relu(self.fc1(x))))  # (N, T, fc_width)
-        h, state = self.lstm(a, state)  # (N, T, lstm_width)
+        if T == 1:  # one frame at a time (generation, control): the same LSTM written out, several times faster
+            h, state = lstm_step(self.lstm, a[:, 0], state)
+            h = h[:, None]
+        else:
+            h, state = self.lstm(a, state)  # (N, T, lstm_width)
         raw = self.out(F.relu(self.fc3(h)))  # (N, T, M (1 + 2 D))
         logits = raw[..., :M]  # w_hat
         mu = raw[..., M: M + M * D].reshape(N, T, M, D)  # mu = mu_hat                     -- eq. (7)
