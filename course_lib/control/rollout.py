@@ -53,7 +53,7 @@ def rollout(prior: RnnPrior, prev: torch.Tensor, state, eps: torch.Tensor, gumbe
     if prior.features == "state_features" and prior.fixed.any():
         fixed = torch.from_numpy(prior.fixed)
         const = ((torch.from_numpy(prior.mean) - prior.model_norm[0]) / prior.model_norm[1]).float()[fixed]
-    x, ys, steps, nll = y_prev[:, -1], [], [], torch.zeros(N, dtype=torch.float64)
+    x, ys, steps = y_prev[:, -1], [], []
     scale = torch.exp(torch.tensor(-float(bias)))
     for t in range(T):
         inp = x if d is None else x + d[:, t].float()
@@ -75,6 +75,6 @@ def rollout(prior: RnnPrior, prev: torch.Tensor, state, eps: torch.Tensor, gumbe
         steps.append(p)
         x = y
     y_all = torch.stack(ys, 1)  # (N, T, D); every frame's -log p(s_i | s_<i, d) at once   -- eq. (15), (8)
-    nll = nll - prior.log_prob(y_all, {k: torch.stack([p[k] for p in steps], 1) for k in steps[0]}).double().sum(1)
+    nll = -prior.log_prob(y_all, {k: torch.stack([p[k] for p in steps], 1) for k in steps[0]}).double().sum(1)
     raw = prior.from_model(torch.cat((y_prev, y_all), 1), skeleton)[:, prev.shape[1]:]
     return raw, nll, state
