@@ -144,6 +144,23 @@ class Skeleton:
 
 
 @lru_cache(maxsize=64)
+def chain_subset(parents: tuple[int, ...], joints: tuple[int, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The joints and every ancestor of theirs, in skeleton order (the root first), and their parents re-indexed
+    within that list: forward kinematics of these alone gives the same positions for them (the toes of the
+    canonical skeleton need 9 joints in 4 levels, not 21 in 6)."""
+    keep = set()
+    for j in joints:
+        if not 0 <= j < len(parents):
+            raise ValueError(f"chain_subset: joint {j} is not one of the {len(parents)} joints")
+        while j >= 0 and j not in keep:
+            keep.add(j)
+            j = parents[j]
+    idx = tuple(sorted(keep))
+    at = {j: i for i, j in enumerate(idx)}
+    return idx, tuple(-1 if parents[j] < 0 else at[parents[j]] for j in idx)
+
+
+@lru_cache(maxsize=64)
 def _depth_levels(parents: tuple[int, ...]) -> tuple[torch.Tensor, list[tuple[int, int, object]], torch.Tensor]:
     """Joints grouped by depth in the tree; each level's parents all sit in the level above.
 

@@ -4,6 +4,7 @@ PSO, the BPTT gradient, and short runs of design / online control / denoising wi
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -593,7 +594,8 @@ def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
 
     def fake_case(name, gait, method, seed=0, scale=1.0):
         calls.append((method, round(scale, 6)))
-        return None, {"ours": 12.0, "lbfgs": 6.0, "best_of_n": 3.0}[method] * scale
+        seconds = {"ours": 12.0, "lbfgs": 6.0, "best_of_n": 3.0}[method] * scale
+        return SimpleNamespace(root_positions=np.zeros((3, 3))), seconds
 
     monkeypatch.setattr(X, "offline_case", fake_case)
     monkeypatch.setattr(X, "measure_design", lambda m, c: {"end_distance_m": 0.0})
@@ -605,7 +607,15 @@ def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
     assert out["line/walk"]["lbfgs"]["budget_scale"] == 2.0 and out["line/walk"]["best_of_n"]["seconds"] == 12.0
     calls.clear()
     X.equal_time_eval(cases=(("line", "walk"),), progress=None)
-    assert calls == [("ours", 1.0), ("lbfgs", 1.0), ("lbfgs", 2.0), ("best_of_n", 1.0), ("best_of_n", 4.0)]
+    assert calls == [("ours", 1.0), ("lbfgs", 1.0), ("best_of_n", 1.0), ("lbfgs", 2.0), ("best_of_n", 4.0)]
+
+
+def test_offline_cases_in_worker_processes_come_back_in_task_order():
+    """experiments.control._map: with 2 worker processes the results are the serial ones, in the tasks' order."""
+    from course_lib.experiments import control as X
+
+    tasks = [-3, 1, -2, 5, -4]
+    assert list(X._map(abs, tasks, 2)) == list(X._map(abs, tasks, 1)) == [3, 1, 2, 5, 4]
 
 
 def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):

@@ -19,13 +19,16 @@ __all__ = ["LbfgsConfig", "minimise_lbfgs"]
 class LbfgsConfig:
     """L-BFGS settings."""
 
-    iterations: int = 40  # function evaluations at most (torch's max_iter)
+    iterations: int = 40  # L-BFGS iterations at most (torch's max_iter)
+    evaluations: int | None = None  # energy evaluations at most (torch's max_eval; None: torch's 1.25 x iterations)
     history_size: int = 10  # curvature pairs kept
     lr: float = 1.0  # torch's step scale; with the strong-Wolfe line search 1 is the textbook value
 
     def __post_init__(self):
         if int(self.iterations) != self.iterations or self.iterations < 0:
             raise ValueError(f"LbfgsConfig: iterations must be an int >= 0, got {self.iterations}")
+        if self.evaluations is not None and (int(self.evaluations) != self.evaluations or self.evaluations < 1):
+            raise ValueError(f"LbfgsConfig: evaluations must be None or an int >= 1, got {self.evaluations}")
 
 
 def minimise_lbfgs(energy: Callable[..., torch.Tensor], variables: Sequence[torch.Tensor],
@@ -34,7 +37,8 @@ def minimise_lbfgs(energy: Callable[..., torch.Tensor], variables: Sequence[torc
     energy at each evaluation).  The inputs are not modified."""
     config = config or LbfgsConfig()
     xs = [v.detach().clone().requires_grad_(True) for v in variables]
-    opt = torch.optim.LBFGS(xs, lr=config.lr, max_iter=config.iterations, history_size=config.history_size,
+    opt = torch.optim.LBFGS(xs, lr=config.lr, max_iter=config.iterations, max_eval=config.evaluations,
+                            history_size=config.history_size,
                             line_search_fn="strong_wolfe", tolerance_grad=1e-7, tolerance_change=1e-9)
     history = []
 

@@ -6,8 +6,8 @@ character moves; each call optimises the next short batch of frames, MAP with eq
       + 2 (1 - cos(yaw_T - c_direction)) / sigma_direction^2                            -- eq. (23)
 
 speed_i = ||root_xz_i - root_xz_{i-1}|| fps; yaw_T the heading of the batch's last frame (2 (1 - cos x) ~ x^2,
-without the jump at +-pi).  Per call: a few RNN samples, the best one, then a few L-BFGS iterations on its
-sampler noise and d (rollout.py; gradients by BPTT).
+without the jump at +-pi).  Per call: a few RNN samples, the best one, then a few L-BFGS evaluations on its
+sampler noise and d (rollout.py; gradients by BPTT); the lowest-energy batch evaluated is the one returned.
 
 Latency: a command given to ``step`` shapes the ``batch`` frames that call returns (10 frames = 0.33 s at
 30 fps); its speed is the batch's average, its direction is asked of the batch's last frame.
@@ -44,9 +44,9 @@ class OnlineConfig:
 
     batch: int = 10  # frames optimised and returned per step (the latency)
     candidates: int = 4  # RNN samples per step; the best starts L-BFGS
-    lbfgs_iterations: int = 3  # function evaluations per step (2: 74 frames/s but 180 degrees took 2.7 s; 4: 33)
-    # ... and they bound the running speed-up 1.5 -> 3.25 m/s (2.7 s; 10: within 0.67 s at 19 frames/s;
-    # tools/control_speedup.py): the RNN's samples keep its pace, so the speed must come from L-BFGS
+    lbfgs_iterations: int = 5  # energy evaluations of L-BFGS per step (its max_iter and max_eval); the RNN's
+    # samples keep its pace, so a speed change must come from L-BFGS: at 3 the runner never got back to 2.5 m/s
+    # after the speed-up; at 10, 18-19 frames/s (tools/control_online_budget.py)
     sigma_speed: float = 0.05  # m/s, eq. (22)
     sigma_direction: float = 0.01  # rad, eq. (23); 0.03 took 2 s for a 180-degree command, 0.01 took 1 s
     max_turn: float = math.radians(60)  # the most the asked direction differs from the heading, per batch
@@ -82,6 +82,8 @@ class OnlineController:
 
     def __init__(self, gait: str = "walk", seed: int = 0, start: Motion | None = None, prior: RnnPrior | None = None,
                  config: OnlineConfig | None = None):
+        import torch._dynamo  # noqa: F401  -- torch.optim imports it on its first optimiser (1.3 s): not in step 1
+
         from course_lib.control.design import _second_pose, default_prior, prepare_start, stance_plane
 
         self.prior = prior or default_prior()
@@ -122,18 +124,29 @@ class OnlineController:
             k = int(energy.sampled(eps, gum, None, cfg.sample_bias)[1]["total"].argmin())
         eps, gum = eps[k:k + 1], gum[k:k + 1]
         d = torch.zeros(1, cfg.batch, prior.dim, dtype=torch.float64)
-        if cfg.lbfgs_iterations:
-            (eps, d), _ = minimise_lbfgs(lambda e, dd: energy.sampled(e, gum, dd, cfg.sample_bias)[1]["total"].sum(),
-                                         [eps, d], LbfgsConfig(iterations=cfg.lbfgs_iterations))
-        with torch.no_grad():
-            raw, _ = energy.sampled(eps, gum, d, cfg.sample_bias)
-        return self._commit(energy, raw, d)
+        best = {}  # the lowest-energy batch evaluated: committed as it is, without a further rollout
 
-    def _commit(self, energy: WindowEnergy, raw: torch.Tensor, d: torch.Tensor) -> Motion:
+        def total(e, dd):
+            raw, terms = energy.sampled(e, gum, dd, cfg.sample_bias)
+            value = terms["total"].sum()
+            if not best or float(value.detach()) < best["energy"]:
+                best.update(energy=float(value.detach()), raw=raw.detach(),
+                            state=tuple(s.detach() for s in energy.last_state))
+            return value
+
+        if cfg.lbfgs_iterations:
+            n = cfg.lbfgs_iterations
+            minimise_lbfgs(total, [eps, d], LbfgsConfig(iterations=n, evaluations=n))
+        else:
+            with torch.no_grad():
+                total(eps, d)
+        return self._commit(energy, best["raw"], best["state"])
+
+    def _commit(self, energy: WindowEnergy, raw: torch.Tensor, state) -> Motion:
         from course_lib.representations import decode_state_features
 
         pose = self.pose
-        self.state = energy.last_state  # the RNN has read prev's last frame and raw[:-1] (+ d)
+        self.state = state  # the RNN has read prev's last frame and raw[:-1] (+ d)
         self.pose = energy.end_pose(raw)
         self.prev = torch.cat((self.prev, raw), 1)[:, -2:]
         self.frames.append(raw[0])

@@ -20,6 +20,7 @@ Taught in notebooks/04_map_control.ipynb, which reads the recorded results (``re
 from __future__ import annotations
 
 import math
+import os
 import time
 from pathlib import Path
 
@@ -140,50 +141,66 @@ def _run_free(c: np.ndarray, seconds: float, gait: str, seed: int, greedy: bool)
     return decode_state_features(feats, start.skeleton, 30.0, tuple(float(v) for v in init0))
 
 
-def offline_eval(seed: int = 0, curves=CURVES, gaits=("walk", "run"), methods=METHODS, progress=print) -> dict:
-    """Every curve x gait x method -> {"curve/gait/method": measure_design + seconds}."""
+def _offline_row(task: tuple) -> tuple[str, dict]:
+    """One (curve, gait, method, seed, budget scale) case -> ("curve/gait/method", measure_design + seconds); run
+    in a worker process (one torch thread) by `_map`."""
+    name, gait, method, seed, scale = task
+    torch.set_num_threads(1)
+    m, sec = offline_case(name, gait, method, seed, scale=scale)
+    row = {**measure_design(m, curve(name)), "seconds": sec}
+    if method in ("ours", "lbfgs", "greedy"):  # the root path, every 3rd frame, for the lesson's plots
+        row["root_xz"] = np.round(m.root_positions[::3, [0, 2]], 3).tolist()
+    return f"{name}/{gait}/{method}", row
+
+
+def _map(fn, tasks: list, workers: int):
+    """fn over tasks -> their results in task order, each as soon as it and those before it are done; workers > 1:
+    that many processes of one torch thread each (each case's seconds are then its own process's wall time,
+    measured with the other worker busy)."""
+    if workers <= 1 or len(tasks) < 2:
+        yield from map(fn, tasks)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(min(workers, len(tasks)), mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield from pool.map(fn, tasks)
+
+
+def offline_eval(seed: int = 0, curves=CURVES, gaits=("walk", "run"), methods=METHODS, progress=print,
+                 workers: int = 1) -> dict:
+    """Every curve x gait x method -> {"curve/gait/method": measure_design + seconds}; ``workers`` processes."""
+    tasks = [(name, gait, method, seed, 1.0) for name in curves for gait in gaits for method in methods]
     rows = {}
-    for name in curves:
-        for gait in gaits:
-            for method in methods:
-                m, sec = offline_case(name, gait, method, seed)
-                key = f"{name}/{gait}/{method}"
-                rows[key] = {**measure_design(m, curve(name)), "seconds": sec}
-                if method in ("ours", "lbfgs", "greedy"):  # the root path, every 3rd frame, for the lesson's plots
-                    rows[key]["root_xz"] = np.round(m.root_positions[::3, [0, 2]], 3).tolist()
-                if progress:
-                    progress(key, {k: round(v, 3) for k, v in rows[key].items() if not isinstance(v, list)})
+    for key, row in _map(_offline_row, tasks, workers):
+        rows[key] = row
+        if progress:
+            progress(key, {k: round(v, 3) for k, v in row.items() if not isinstance(v, list)})
     return rows
 
 
 def equal_time_eval(seed: int = 0, cases=(("s_curve", "walk"), ("line", "run")), progress=print,
-                    offline: dict | None = None) -> dict:
+                    offline: dict | None = None, workers: int = 1) -> dict:
     """Ours against L-BFGS alone and best-of-N given (about) ours' wall time: their budgets are scaled by the
     ratio of ours' time to theirs at the default budget (measured on the same case).
 
     offline: `offline_eval`'s rows of the same run and seed; ours and the default-budget timings are taken from
     them (the same motions, already measured) instead of being run again."""
+    methods = ("ours", "lbfgs", "best_of_n")
+    need = [(n, g, m, seed, 1.0) for n, g in cases for m in methods if f"{n}/{g}/{m}" not in (offline or {})]
+    done = {**(offline or {}), **dict(_map(_offline_row, need, workers))}
+    scaled = [(n, g, m, seed, done[f"{n}/{g}/ours"]["seconds"] / max(done[f"{n}/{g}/{m}"]["seconds"], 1e-3))
+              for n, g in cases for m in methods[1:]]
+    again = dict(_map(_offline_row, scaled, workers))
     out = {}
-    for name, gait in cases:
+    for (name, gait, method, _, scale) in scaled:
         key = f"{name}/{gait}"
-        if offline is not None and f"{key}/ours" in offline:
-            done = offline[f"{key}/ours"]
-            row = {"ours": {k: v for k, v in done.items() if k != "root_xz"}}
-            t_ours = done["seconds"]
-        else:
-            m, t_ours = offline_case(name, gait, "ours", seed)
-            row = {"ours": {**measure_design(m, curve(name)), "seconds": t_ours}}
-        for method in ("lbfgs", "best_of_n"):
-            if offline is not None and f"{key}/{method}" in offline:
-                t1 = offline[f"{key}/{method}"]["seconds"]
-            else:
-                _, t1 = offline_case(name, gait, method, seed)
-            scale = t_ours / max(t1, 1e-3)
-            m, t = offline_case(name, gait, method, seed, scale=scale)
-            row[method] = {**measure_design(m, curve(name)), "seconds": t, "budget_scale": scale}
-        out[f"{name}/{gait}"] = row
-        if progress:
-            progress(name, gait, {k: round(v["end_distance_m"], 3) for k, v in row.items()})
+        row = out.setdefault(key, {"ours": {k: v for k, v in done[f"{key}/ours"].items() if k != "root_xz"}})
+        row[method] = {k: v for k, v in again[f"{key}/{method}"].items() if k != "root_xz"}
+        row[method]["budget_scale"] = scale
+    if progress:
+        for key, row in out.items():
+            progress(key, {k: round(v["end_distance_m"], 3) for k, v in row.items()})
     return out
 
 
@@ -204,7 +221,8 @@ def online_run(gait: str = "walk", seed: int = 0, config=None, program=None) -> 
     ``config``: an OnlineConfig, default the controller's) -> per batch (time, commanded speed and direction,
     the net speed over the last ``SPEED_WINDOW`` frames, whatever the batch size, and the heading),
     the speed settling times (within 10 % of a changed command), the turn times (heading within 10 degrees
-    of a +-180-degree command), frames/s of the whole run on this core, the latency in frames."""
+    of a +-180-degree command), the share of batches whose speed stays within 10 % from 1 s after a change to the
+    next (`_held`), frames/s of the whole run on this core, the latency in frames."""
     from course_lib.control import OnlineController
 
     ctrl = OnlineController(gait, seed=seed, config=config)
@@ -223,8 +241,21 @@ def online_run(gait: str = "walk", seed: int = 0, config=None, program=None) -> 
     return {"batches": [{k: (float(v) if k != "xz" else [float(a) for a in v]) for k, v in r.items()} for r in log],
             "speed_settle_s": _settle(log, "speed_cmd", lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),
             "turn_s": _settle(log, "dir_cmd", lambda r: abs(_wrap(r["heading"] - r["dir_cmd"])) <= math.radians(10)),
+            "speed_held": _held(log, lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),
             "frames_per_s": len(log) * ctrl.config.batch / wall, "latency_frames": ctrl.config.batch,
             "seconds": wall}
+
+
+def _held(log: list, ok, after: float = 1.0) -> float:
+    """The share of batches, among those more than ``after`` seconds past the last change of either command
+    (and past the start), for which ok(row) holds: does the speed stay where it settled?"""
+    last, rows = 0.0, []
+    for i, r in enumerate(log):
+        if i and (r["speed_cmd"], r["dir_cmd"]) != (log[i - 1]["speed_cmd"], log[i - 1]["dir_cmd"]):
+            last = log[i - 1]["t"]
+        if r["t"] - last > after + 1e-9:
+            rows.append(bool(ok(r)))
+    return float(np.mean(rows)) if rows else float("nan")
 
 
 def _wrap(a: float) -> float:
@@ -352,9 +383,15 @@ def initial_state_eval(clips_per_gait: int = 10) -> dict:
 PARTS = ("offline", "equal_time", "online", "denoise", "initial_state")
 
 
-def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print, only=None) -> dict:
+WORKERS = min(2, os.cpu_count() or 1)  # processes for the offline designs (the course machine has 2 cores)
+
+
+def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print, only=None,
+                 workers: int = WORKERS) -> dict:
     """Every measurement of lesson 04 on the shipped GMM-RNN (checkpoints/gmm_rnn.pt), or only the `PARTS`
-    named in `only` (the others kept as recorded; ``measured_by`` says which command measured each part)."""
+    named in `only` (the others kept as recorded; ``measured_by`` says which command measured each part).
+    The offline and equal-time designs run in ``workers`` processes of one thread each; online control, whose
+    frames/s are a target, runs alone afterwards."""
     import json
 
     torch.set_num_threads(1)
@@ -363,7 +400,7 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
         raise ValueError(f"control: --only takes parts of {PARTS}, got {unknown}")
     t0 = time.perf_counter()
     sha = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]
-    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha}
+    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha, "workers": workers}
     times, by = {}, {}
     if only:
         kept = recorded_results(checkpoints)
@@ -373,9 +410,10 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
                                  f"re-measure every part (no --only)")
         out = dict(kept)
         times, by = dict(out.get("seconds", {})), dict(out.get("measured_by", {}))
-    runs = {"offline": lambda: offline_eval(seed, progress=progress),
+    runs = {"offline": lambda: offline_eval(seed, progress=progress, workers=workers),
             "equal_time": lambda: equal_time_eval(  # reuses the offline rows measured in this run
-                seed, progress=progress, offline=out["offline"] if not only or "offline" in only else None),
+                seed, progress=progress, offline=out["offline"] if not only or "offline" in only else None,
+                workers=workers),
             "online": lambda: {g: online_run(g, seed) for g in ("walk", "run")},
             "denoise": lambda: denoise_eval(seed, progress=progress),
             "initial_state": initial_state_eval}
