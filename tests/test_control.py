@@ -649,3 +649,22 @@ def test_online_run_measures_speed_over_the_same_window_whatever_the_batch():
     for k in range(2, len(b)):
         expect = np.linalg.norm(np.subtract(b[k]["xz"], b[k - 2]["xz"])) * 30.0 / 10
         assert b[k]["speed"] == pytest.approx(expect, rel=1e-9)
+
+
+def test_held_share_known_answers():
+    """A synthetic constant-speed walk (mocap at a constant command) keeps every 10-frame speed within 10 %: 1.0;
+    a speed that alternates 0.6x / 1.4x of the command: 0.0; rows within 1 s of a change are not counted."""
+    from course_lib.experiments import control as X
+    from course_lib.synthetic import ControlProgram, generate_locomotion, make_subject
+
+    m = generate_locomotion(make_subject(0, seed=0), ControlProgram.constant("walk", 1.2, 6.0), duration=6.0,
+                            seed=0).resample(30.0)
+    xz = m.root_positions[:, [0, 2]]
+    log = [{"t": i / 3, "speed_cmd": 1.2, "dir_cmd": 0.0,
+            "speed": float(np.linalg.norm(xz[10 * i] - xz[10 * i - 10]) * 3)} for i in range(1, 18)]  # to 5.67 s
+    within = lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1  # noqa: E731
+    assert X.held_share(log, within) == 1.0
+    zig = [dict(r, speed=1.2 * (0.6 if i % 2 else 1.4)) for i, r in enumerate(log)]
+    assert X.held_share(zig, within) == 0.0
+    late = [dict(r, speed_cmd=2.0) if r["t"] > 3 else r for r in log]  # a change after 3 s the walk never follows
+    assert X.held_share(late, within) == pytest.approx(6 / 11)  # 1.33-3.0 s: 6 within; 4.33-5.67 s: 5 not

@@ -217,3 +217,18 @@ def test_motion_from_positions_recovers_the_bones(seed):
         np.testing.assert_allclose(b, 1.2 * a, atol=1e-9)  # same direction, the new skeleton's length
     with pytest.raises(ValueError, match="positions"):
         R.motion_from_positions(pos[:, :20], m.skeleton, m.fps)
+
+
+def test_local_positions_of_some_joints_are_those_of_the_full_fk():
+    """local_positions(joints=...) runs FK over those joints' chains only; the positions are the full FK's."""
+    sk = Skeleton.canonical()
+    g = torch.Generator().manual_seed(3)
+    feats = torch.randn(2, 5, R.feature_dim("state_features", sk.num_joints), generator=g, dtype=torch.float64) * 0.3
+    joints = (sk.index("RightToeBase"), sk.index("LeftHand"), 0)
+    full = R.local_positions(feats, sk)
+    some = R.local_positions(feats, sk, joints=joints)
+    assert some.shape == (2, 5, 3, 3)
+    torch.testing.assert_close(some, full[..., list(joints), :], atol=1e-12, rtol=0)
+    scaled = torch.as_tensor(sk.offsets)[None].expand(2, -1, -1) * torch.tensor([1.0, 1.1])[:, None, None]
+    torch.testing.assert_close(R.local_positions(feats, sk, scaled, joints),
+                               R.local_positions(feats, sk, scaled)[..., list(joints), :], atol=1e-12, rtol=0)

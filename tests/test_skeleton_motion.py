@@ -306,3 +306,23 @@ def test_fk_refuses_invalid_rotations_and_takes_numpy():
             forward_kinematics(bad, root, off, sk.parents)
     with pytest.raises(ValueError, match="norm 2"):
         sk.fk(2 * q, root)
+
+
+def test_chain_subset_keeps_each_joints_ancestors_and_fk_of_it_matches(sk):
+    """The toes' chains are 9 joints of the 21 (root, both legs); FK over the subset gives the full FK's toe
+    positions; a joint that is not there raises."""
+    from course_lib.skeleton import chain_subset
+
+    toes = (sk.index("LeftToeBase"), sk.index("RightToeBase"))
+    idx, parents = chain_subset(sk.parents, toes)
+    assert idx == (0, 1, 2, 3, 4, 5, 6, 7, 8) and parents == (-1, 0, 1, 2, 3, 0, 5, 6, 7)
+    assert chain_subset(sk.parents, (0,)) == ((0,), (-1,))
+    g = torch.Generator().manual_seed(0)
+    q = quat_normalize(torch.randn(4, sk.num_joints, 4, generator=g, dtype=torch.float64))
+    root = torch.randn(4, 3, generator=g, dtype=torch.float64)
+    off = torch.as_tensor(sk.offsets)
+    full = forward_kinematics(q, root, off, sk.parents)[0][:, list(toes)]
+    sub = forward_kinematics(q[:, list(idx)], root, off[list(idx)], parents)[0][:, [idx.index(j) for j in toes]]
+    assert torch.allclose(sub, full, atol=1e-12) and full.abs().max() > 0.1
+    with pytest.raises(ValueError, match="joint 21"):
+        chain_subset(sk.parents, (21,))

@@ -45,6 +45,7 @@ class WindowEnergy:
     sigma_con: float = SIGMA_CON
     sigma_con_y: float = SIGMA_CON_Y
     weights: dict = field(default_factory=dict)  # optional factor per term name (all 1: the paper)
+    contact_height: float | None = None  # m: a toe below it also counts as in contact in eq. (18), whatever its bit
 
     def __post_init__(self):
         self.prev = self.prev.double()
@@ -98,6 +99,8 @@ class WindowEnergy:
         control = torch.zeros(N, dtype=torch.float64) if self.control is None else self.control(xz, yaw, raw)
         toes = toe_positions(raw, self.skeleton, init)  # (N, T, 2, 3)
         bits = (raw[..., self.prior.contact_cols] > 0.5).double()
+        if self.contact_height is not None:  # the toes low enough for foot_skate to count them (ours, see design.py)
+            bits = torch.maximum(bits, (toes[..., 1].detach() < self.contact_height).double())
         contact = contact_energy(toes, bits, self.prev_toes.expand(N, 2, 3), self.plane, self.sigma_con,
                                  self.sigma_con_y)
         out = {"prior": prior, "noise": noise, "control": control, "contact": contact}

@@ -29,7 +29,7 @@ import torch
 
 from course_lib.reproduce import CHECKPOINTS, rounded
 
-__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "denoise_clips",
+__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "held_share", "denoise_clips",
            "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
            "recorded_results"]
 
@@ -222,7 +222,7 @@ def online_run(gait: str = "walk", seed: int = 0, config=None, program=None) -> 
     the net speed over the last ``SPEED_WINDOW`` frames, whatever the batch size, and the heading),
     the speed settling times (within 10 % of a changed command), the turn times (heading within 10 degrees
     of a +-180-degree command), the share of batches whose speed stays within 10 % from 1 s after a change to the
-    next (`_held`), frames/s of the whole run on this core, the latency in frames."""
+    next (`held_share`), frames/s of the whole run on this core, the latency in frames."""
     from course_lib.control import OnlineController
 
     ctrl = OnlineController(gait, seed=seed, config=config)
@@ -241,14 +241,15 @@ def online_run(gait: str = "walk", seed: int = 0, config=None, program=None) -> 
     return {"batches": [{k: (float(v) if k != "xz" else [float(a) for a in v]) for k, v in r.items()} for r in log],
             "speed_settle_s": _settle(log, "speed_cmd", lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),
             "turn_s": _settle(log, "dir_cmd", lambda r: abs(_wrap(r["heading"] - r["dir_cmd"])) <= math.radians(10)),
-            "speed_held": _held(log, lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),
+            "speed_held": held_share(log, lambda r: abs(r["speed"] / r["speed_cmd"] - 1) <= 0.1),
             "frames_per_s": len(log) * ctrl.config.batch / wall, "latency_frames": ctrl.config.batch,
             "seconds": wall}
 
 
-def _held(log: list, ok, after: float = 1.0) -> float:
+def held_share(log: list, ok, after: float = 1.0) -> float:
     """The share of batches, among those more than ``after`` seconds past the last change of either command
-    (and past the start), for which ok(row) holds: does the speed stay where it settled?"""
+    (and past the start), for which ok(row) holds: does the speed stay where it settled?  log: rows with "t",
+    "speed_cmd", "dir_cmd" (`online_run`'s batches).  Known answer: mocap at a constant command scores 1."""
     last, rows = 0.0, []
     for i, r in enumerate(log):
         if i and (r["speed_cmd"], r["dir_cmd"]) != (log[i - 1]["speed_cmd"], log[i - 1]["dir_cmd"]):
