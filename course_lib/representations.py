@@ -373,24 +373,18 @@ def local_positions(features: torch.Tensor, skeleton: Skeleton, offsets: torch.T
     (origin under the root, +Z the heading): FK of R_x(pitch) R_z(roll), the expmaps, root height.
     offsets: rest offsets (J, 3) for every motion, or (..., J, 3) one skeleton per motion (default: skeleton's).
     joints: indices of the joints wanted (..., T, len(joints), 3); FK then runs over their chains only."""
-    from course_lib.skeleton import chain_subset, forward_kinematics
+    from course_lib.skeleton import chain_positions
 
     _check_state_tensor(features, skeleton)
-    J = skeleton.num_joints
-    want = tuple(range(J)) if joints is None else tuple(int(j) for j in joints)
-    idx, parents = chain_subset(skeleton.parents, want)
     root_tilt = torch.stack((torch.zeros_like(features[..., 4]), features[..., 4], features[..., 5]), -1)
     root_q = euler_to_quat(root_tilt, "YXZ")  # (..., T, 4): R_y(0) R_x(pitch) R_z(roll)
-    theta = features[..., 6:-2].unflatten(-1, (J - 1, 3))[..., [j - 1 for j in idx[1:]], :]  # (..., T, J'-1, 3)
-    q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J', 4)
+    theta = features[..., 6:-2].unflatten(-1, (skeleton.num_joints - 1, 3))  # (..., T, J-1, 3)
     root = torch.stack((torch.zeros_like(features[..., 3]), features[..., 3], torch.zeros_like(features[..., 3])), -1)
     off = torch.as_tensor(skeleton.offsets, dtype=features.dtype) if offsets is None else \
         torch.as_tensor(offsets).to(features.dtype)
-    off = off[..., list(idx), :]
     if off.dim() == features.dim():  # one skeleton per motion: (..., J, 3) -> (..., 1, J, 3), shared by its frames
         off = off.unsqueeze(-3)
-    pos = forward_kinematics(q, root, off, parents)[0]
-    return pos if joints is None else pos[..., [idx.index(j) for j in want], :]
+    return chain_positions(root_q, theta, root, off, skeleton.parents, joints)
 
 
 def _turn(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:

@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from course_lib.rotations import check_unit, quat_mul, quat_rotate
+from course_lib.rotations import check_unit, expmap_to_quat, quat_mul, quat_rotate
 
 CANONICAL_JOINTS = (
     "Hips",
@@ -158,6 +158,20 @@ def chain_subset(parents: tuple[int, ...], joints: tuple[int, ...]) -> tuple[tup
     idx = tuple(sorted(keep))
     at = {j: i for i, j in enumerate(idx)}
     return idx, tuple(-1 if parents[j] < 0 else at[parents[j]] for j in idx)
+
+
+def chain_positions(root_rotation: torch.Tensor, expmaps: torch.Tensor, root_positions: torch.Tensor,
+                    offsets: torch.Tensor, parents, joints=None) -> torch.Tensor:
+    """Forward kinematics of some joints over their chains only (`chain_subset`): root_rotation (..., 4) a unit
+    quaternion, expmaps (..., J-1, 3) the local rotations of joints 1..J-1 (eq. 3 of Wang et al.), root_positions
+    (..., 3), offsets (J, 3) or (..., J, 3), joints: indices (default every joint) -> positions (..., len(joints), 3),
+    the same as `forward_kinematics`' for those joints."""
+    J = len(parents)
+    want = tuple(range(J)) if joints is None else tuple(int(j) for j in joints)
+    idx, sub = chain_subset(tuple(int(p) for p in parents), want)
+    q = torch.cat((root_rotation.unsqueeze(-2), expmap_to_quat(expmaps[..., [j - 1 for j in idx[1:]], :])), -2)
+    pos = forward_kinematics(q, root_positions, offsets[..., list(idx), :], sub)[0]
+    return pos if idx == want else pos[..., [idx.index(j) for j in want], :]
 
 
 @lru_cache(maxsize=64)

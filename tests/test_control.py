@@ -611,11 +611,11 @@ def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
 
 
 def test_offline_cases_in_worker_processes_come_back_in_task_order():
-    """experiments.control._map: with 2 worker processes the results are the serial ones, in the tasks' order."""
+    """experiments.control.parallel_map: with 2 worker processes the results are the serial ones, in task order."""
     from course_lib.experiments import control as X
 
     tasks = [-3, 1, -2, 5, -4]
-    assert list(X._map(abs, tasks, 2)) == list(X._map(abs, tasks, 1)) == [3, 1, 2, 5, 4]
+    assert list(X.parallel_map(abs, tasks, 2)) == list(X.parallel_map(abs, tasks, 1)) == [3, 1, 2, 5, 4]
 
 
 def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):

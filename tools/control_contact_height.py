@@ -43,7 +43,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     tasks = [(n, g, r) for n in C.CURVES for g in ("walk", "run") for r in RULES]
     rows = {}
-    for key, row in C._map(case, tasks, args.workers):
+    for key, row in C.parallel_map(case, tasks, args.workers):
         rows[key] = row
         print(key, {k: round(v, 3) for k, v in row.items()}, flush=True)
     out = {"command": COMMAND, "seed": 0, "rows": rounded(rows, 4)}

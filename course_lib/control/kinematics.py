@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import torch
 
-from course_lib.rotations import euler_to_quat, expmap_to_quat
-from course_lib.skeleton import Skeleton, chain_subset, forward_kinematics
+from course_lib.rotations import euler_to_quat
+from course_lib.skeleton import Skeleton, chain_positions
 
 __all__ = ["integrate_root", "world_positions", "toe_positions", "heading_yaw"]
 
@@ -51,17 +51,13 @@ def world_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor, j
     J = skeleton.num_joints
     if raw.shape[-1] != 6 + 3 * (J - 1) + 2:
         raise ValueError(f"world_positions: raw must be (..., T, {6 + 3 * (J - 1) + 2}), got {tuple(raw.shape)}")
-    want = tuple(range(J)) if joints is None else tuple(skeleton.index(j) for j in joints)
-    idx, parents = chain_subset(skeleton.parents, want)  # FK of these joints' chains only
     xz, yaw = integrate_root(raw[..., 0:2], raw[..., 2], init)
     root_q = euler_to_quat(torch.stack((yaw, raw[..., 4], raw[..., 5]), -1), "YXZ")  # (..., T, 4)
-    theta = raw[..., 6:-2].unflatten(-1, (J - 1, 3))[..., [j - 1 for j in idx[1:]], :]  # (..., T, J'' - 1, 3)
-    q = torch.cat((root_q.unsqueeze(-2), expmap_to_quat(theta)), -2)  # (..., T, J'', 4)
+    theta = raw[..., 6:-2].unflatten(-1, (J - 1, 3))  # (..., T, J-1, 3)
     root = torch.stack((xz[..., 0], raw[..., 3], xz[..., 1]), -1)  # (..., T, 3)
-    offsets = torch.as_tensor(skeleton.offsets[list(idx)], dtype=raw.dtype)
-    pos = forward_kinematics(q, root, offsets, parents)[0]  # (..., T, J'', 3)
-    return pos[..., [idx.index(j) for j in want], :]
-
+    offsets = torch.as_tensor(skeleton.offsets, dtype=raw.dtype)
+    want = None if joints is None else [skeleton.index(j) for j in joints]
+    return chain_positions(root_q, theta, root, offsets, skeleton.parents, want)  # FK of their chains only
 
 TOES = ("LeftToeBase", "RightToeBase")  # the contact points of eq. (18): the joints foot_skate measures
 

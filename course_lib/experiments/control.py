@@ -29,7 +29,8 @@ import torch
 
 from course_lib.reproduce import CHECKPOINTS, rounded
 
-__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "held_share", "denoise_clips",
+__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "held_share", "parallel_map",
+           "denoise_clips",
            "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
            "recorded_results"]
 
@@ -143,7 +144,7 @@ def _run_free(c: np.ndarray, seconds: float, gait: str, seed: int, greedy: bool)
 
 def _offline_row(task: tuple) -> tuple[str, dict]:
     """One (curve, gait, method, seed, budget scale) case -> ("curve/gait/method", measure_design + seconds); run
-    in a worker process (one torch thread) by `_map`."""
+    in a worker process (one torch thread) by `parallel_map`."""
     name, gait, method, seed, scale = task
     torch.set_num_threads(1)
     m, sec = offline_case(name, gait, method, seed, scale=scale)
@@ -153,7 +154,7 @@ def _offline_row(task: tuple) -> tuple[str, dict]:
     return f"{name}/{gait}/{method}", row
 
 
-def _map(fn, tasks: list, workers: int):
+def parallel_map(fn, tasks: list, workers: int):
     """fn over tasks -> their results in task order, each as soon as it and those before it are done; workers > 1:
     that many processes of one torch thread each (each case's seconds are then its own process's wall time,
     measured with the other worker busy)."""
@@ -172,7 +173,7 @@ def offline_eval(seed: int = 0, curves=CURVES, gaits=("walk", "run"), methods=ME
     """Every curve x gait x method -> {"curve/gait/method": measure_design + seconds}; ``workers`` processes."""
     tasks = [(name, gait, method, seed, 1.0) for name in curves for gait in gaits for method in methods]
     rows = {}
-    for key, row in _map(_offline_row, tasks, workers):
+    for key, row in parallel_map(_offline_row, tasks, workers):
         rows[key] = row
         if progress:
             progress(key, {k: round(v, 3) for k, v in row.items() if not isinstance(v, list)})
@@ -188,10 +189,10 @@ def equal_time_eval(seed: int = 0, cases=(("s_curve", "walk"), ("line", "run")),
     them (the same motions, already measured) instead of being run again."""
     methods = ("ours", "lbfgs", "best_of_n")
     need = [(n, g, m, seed, 1.0) for n, g in cases for m in methods if f"{n}/{g}/{m}" not in (offline or {})]
-    done = {**(offline or {}), **dict(_map(_offline_row, need, workers))}
+    done = {**(offline or {}), **dict(parallel_map(_offline_row, need, workers))}
     scaled = [(n, g, m, seed, done[f"{n}/{g}/ours"]["seconds"] / max(done[f"{n}/{g}/{m}"]["seconds"], 1e-3))
               for n, g in cases for m in methods[1:]]
-    again = dict(_map(_offline_row, scaled, workers))
+    again = dict(parallel_map(_offline_row, scaled, workers))
     out = {}
     for (name, gait, method, _, scale) in scaled:
         key = f"{name}/{gait}"
