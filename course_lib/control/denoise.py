@@ -74,6 +74,8 @@ class DenoiseConfig:
     held_frames: str = "fill"  # dropped frames: "fill" (interpolated in the start, out of eq. 25) or "keep"
     first_frame: str = "input"  # frame 0 and the root's start: "input" (as given) or "start" (the search start's)
     start_cutoff_hz: float | None = 4.0  # Hz: search from the input low-passed so (lowpass.py); None: the input
+    contact_height: float | None = None  # m: eq. (18) also holds toes below this height, whatever their bits
+    # (design.py's rule; None: the bits alone)
 
 
 @dataclass
@@ -174,7 +176,7 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
         return sum(problem.data_terms(raw).values())
 
     problem.energy = WindowEnergy(prior, skel, c[:, :1], state, init, data_term, stance_plane(motion),
-                                  weights=config.weights)
+                                  weights=config.weights, contact_height=config.contact_height)
     return problem
 
 
