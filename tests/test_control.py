@@ -553,6 +553,21 @@ def test_denoise_problem_data_terms_known_answers(prior, walk):
     assert float(P.terms(up, P.mixtures(up))["control"]) == pytest.approx(T1 / 2, rel=1e-9)
 
 
+def test_denoise_contact_height_holds_low_toes_whatever_their_bits(prior, walk):
+    """DenoiseConfig.contact_height reaches eq. (18): with every contact bit off the contact term is 0 without it,
+    and positive with it once a toe below that height moves (the walk's planted toes, shifted 1 cm a frame)."""
+    from course_lib.control import DenoiseConfig
+    from course_lib.control.denoise import denoise_problem
+
+    raw = denoise_problem(walk, prior, DenoiseConfig(initial_state_steps=0)).c[:, 1:].double().clone()
+    raw[..., prior.contact_cols] = 0.0  # no bit on anywhere
+    raw[..., 0] += 0.01  # the root steps 1 cm further sideways every frame: planted toes slide
+    off = denoise_problem(walk, prior, DenoiseConfig(initial_state_steps=0)).energy.terms(raw)["contact"]
+    on = denoise_problem(walk, prior, DenoiseConfig(initial_state_steps=0, contact_height=0.05)).energy
+    assert on.contact_height == 0.05
+    assert float(off) == 0.0 and float(on.terms(raw)["contact"]) > 1.0
+
+
 def test_denoise_starts_where_it_is_told(prior, walk):
     """With no L-BFGS evaluations denoise returns its start: the input with its held frames interpolated and
     low-passed at start_cutoff_hz by default, only interpolated with None (or when the input is too short to
