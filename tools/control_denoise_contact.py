@@ -31,14 +31,21 @@ from course_lib.experiments.gmm_rnn import rounded
 SETTINGS = ((None, 1.0), (0.03, 1.0), (0.05, 1.0), (None, 100.0), (0.03, 100.0), (0.05, 100.0))  # (m, weight)
 
 
-def scores(clips: list, config: DenoiseConfig, seed: int = 0) -> dict:
-    """Denoise make_noisy's copies (noise seed + 1, as denoise_eval) of the clean clips -> mean scores over the
+def mean_scores(inputs: list, clean: list, config: DenoiseConfig, starts: list | None = None, seed: int = 0) -> dict:
+    """Denoise each input (optionally from a start) -> denoise_eval's scores against its clean clip, mean over the
     clips (each clip's foot skate, as denoise_eval)."""
+    starts = starts or [None] * len(inputs)
+    rows = [C._denoise_scores(denoise(x, seed=seed, config=config, start=s), c)
+            for x, c, s in zip(inputs, clean, starts, strict=True)]
+    return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+
+
+def scores(clips: list, config: DenoiseConfig, seed: int = 0) -> dict:
+    """Denoise make_noisy's copies (noise seed + 1, as denoise_eval) of the clean clips -> mean scores, the noisy
+    input's mean joint error, the clean clips' skate and the seconds taken."""
     noisy = noisy_copies(clips, seed + 1)
     t0 = time.perf_counter()
-    rows = [C._denoise_scores(denoise(n, seed=seed, config=config), c)
-            for n, c in zip(noisy, clips, strict=True)]
-    out = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+    out = mean_scores(noisy, clips, config, seed=seed)
     out["noisy_mean_joint_error_m"] = float(np.mean([C._denoise_scores(n, c)["mean_joint_error_m"]
                                                      for n, c in zip(noisy, clips, strict=True)]))
     out["clean_foot_skate_m_s"] = float(foot_skate(clips))
@@ -46,33 +53,41 @@ def scores(clips: list, config: DenoiseConfig, seed: int = 0) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def sweep(settings: dict, command: str) -> dict:
+    """{name: DenoiseConfig}, the first the shipped one -> every setting scored on the tuning clips (held-out clips
+    4-7 of each gait), the lowest skate whose mean joint error is at most 5 % above the shipped setting's picked, and
+    the shipped and the picked setting scored on the scored clips (0-3, denoise_eval's)."""
+    tuning, scored = C.denoise_clips(first=4), C.denoise_clips(first=0)
+    results = {"command": command, "clips_per_set": len(tuning), "tuning": {}, "scored": {}}
+    for name, config in settings.items():
+        results["tuning"][name] = r = scores(tuning, config)
+        print("tuning", name, {k: round(v, 4) for k, v in r.items()}, flush=True)
+    rows, shipped = results["tuning"], next(iter(settings))
+    limit = 1.05 * rows[shipped]["mean_joint_error_m"]
+    picked = min(settings, key=lambda n: rows[n]["foot_skate_m_s"] if rows[n]["mean_joint_error_m"] <= limit
+                 else np.inf)
+    results["picked_on_tuning"] = picked
+    for name in dict.fromkeys((shipped, picked)):
+        results["scored"][name] = r = scores(scored, settings[name])
+        print("scored", name, {k: round(v, 4) for k, v in r.items()}, flush=True)
+    print("picked on the tuning clips (lowest skate, joint error at most 5 % above the shipped):", picked)
+    return results
+
+
+def run_sweep(settings: dict, command: str) -> None:
+    """The command line of a sweep tool: --out FILE, one torch thread, `sweep`, the results written as JSON."""
+    parser = argparse.ArgumentParser(description=command)
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    tuning, scored = C.denoise_clips(first=4), C.denoise_clips(first=0)
-    results = {"command": "python tools/control_denoise_contact.py --out tools/control_denoise_contact_results.json",
-               "clips_per_set": 8, "tuning": {}, "scored": {}}
-
-    def config(setting):
-        return DenoiseConfig(contact_height=setting[0], weights={"contact": setting[1]})
-
-    def name(setting):
-        return f"contact_height={setting[0]}, contact weight={setting[1]:g}"
-    for setting in SETTINGS:
-        results["tuning"][name(setting)] = r = scores(tuning, config(setting))
-        print("tuning", name(setting), {k: round(v, 4) for k, v in r.items()}, flush=True)
-    rows, limit = results["tuning"], 1.05 * results["tuning"][name(SETTINGS[0])]["mean_joint_error_m"]
-    picked = min(SETTINGS, key=lambda st: rows[name(st)]["foot_skate_m_s"]
-                 if rows[name(st)]["mean_joint_error_m"] <= limit else np.inf)
-    results["picked_on_tuning"] = name(picked)
-    for setting in dict.fromkeys((SETTINGS[0], picked)):
-        results["scored"][name(setting)] = r = scores(scored, config(setting))
-        print("scored", name(setting), {k: round(v, 4) for k, v in r.items()}, flush=True)
     with open(args.out, "w") as f:
-        json.dump(rounded(results), f, indent=1)
-    print("picked on the tuning clips (lowest skate, joint error at most 5 % above the shipped):", name(picked))
+        json.dump(rounded(sweep(settings, command)), f, indent=1)
+
+
+def main() -> None:
+    run_sweep({f"contact_height={h}, contact weight={w:g}": DenoiseConfig(contact_height=h, weights={"contact": w})
+               for h, w in SETTINGS},
+              "python tools/control_denoise_contact.py --out tools/control_denoise_contact_results.json")
 
 
 if __name__ == "__main__":

@@ -21,19 +21,12 @@ import json
 
 import numpy as np
 import torch
+from control_denoise_contact import mean_scores  # tools/ is the script's directory
 
-from course_lib.control import denoise
 from course_lib.control.denoise import DenoiseConfig
 from course_lib.datasets import noisy_copies
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
-
-
-def row(inputs: list, clean: list, starts: list | None, config: DenoiseConfig) -> dict:
-    starts = starts or [None] * len(inputs)
-    per = [C._denoise_scores(denoise(x, seed=0, config=config, start=s), c)
-           for x, c, s in zip(inputs, clean, starts, strict=True)]
-    return {k: float(np.mean([r[k] for r in per])) for k in per[0]}
 
 
 def main() -> None:
@@ -52,11 +45,11 @@ def main() -> None:
                                      ("clean input, clean start", clean, clean),
                                      ("noisy input, low-pass start", noisy, None),
                                      ("noisy input, clean start", noisy, clean)):
-            rows[name + tag] = r = row(inputs, clean, starts, config)
+            rows[name + tag] = r = mean_scores(inputs, clean, config, starts)
             print(f"{name + tag:40s}", {k: round(v, 4) for k, v in r.items()}, flush=True)
     for tag, weights in ((", contact off", {"contact": 0.0}),
                          (", prior and contact off", {"prior": 0.0, "contact": 0.0})):
-        rows["clean input, clean start" + tag] = r = row(clean, clean, clean, DenoiseConfig(weights=weights))
+        rows["clean input, clean start" + tag] = r = mean_scores(clean, clean, DenoiseConfig(weights=weights), clean)
         print(f"{'clean input, clean start' + tag:40s}", {k: round(v, 4) for k, v in r.items()}, flush=True)
     out = {"command": "python tools/control_denoise_prior.py --out tools/control_denoise_prior_results.json",
            "clips": len(clean), "rows": rows}

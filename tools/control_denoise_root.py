@@ -11,42 +11,16 @@ shipped setting's, and reports the shipped and the picked setting on the scored 
     python tools/control_denoise_root.py --out tools/control_denoise_root_results.json   # ~4 min, one core
 """
 
-import argparse
-import json
-
-import numpy as np
-import torch
-from control_denoise_contact import scores  # tools/ is the script's directory
+from control_denoise_contact import run_sweep  # tools/ is the script's directory
 
 from course_lib.control.denoise import DenoiseConfig
-from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
 
 SIGMA_ROOT = (0.01, 0.02, 0.04, 0.08)  # m
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", required=True)
-    args = parser.parse_args()
-    torch.set_num_threads(1)
-    tuning, scored = C.denoise_clips(first=4), C.denoise_clips(first=0)
-    results = {"command": "python tools/control_denoise_root.py --out tools/control_denoise_root_results.json",
-               "clips_per_set": 8, "tuning": {}, "scored": {}}
-    for s in SIGMA_ROOT:
-        results["tuning"][f"sigma_root={s}"] = r = scores(tuning, DenoiseConfig(sigma_root=s))
-        print("tuning", s, {k: round(v, 4) for k, v in r.items()}, flush=True)
-    rows = results["tuning"]
-    limit = 1.05 * rows[f"sigma_root={SIGMA_ROOT[0]}"]["mean_joint_error_m"]
-    picked = min(SIGMA_ROOT, key=lambda s: rows[f"sigma_root={s}"]["foot_skate_m_s"]
-                 if rows[f"sigma_root={s}"]["mean_joint_error_m"] <= limit else np.inf)
-    results["picked_on_tuning"] = f"sigma_root={picked}"
-    for s in dict.fromkeys((SIGMA_ROOT[0], picked)):
-        results["scored"][f"sigma_root={s}"] = r = scores(scored, DenoiseConfig(sigma_root=s))
-        print("scored", s, {k: round(v, 4) for k, v in r.items()}, flush=True)
-    with open(args.out, "w") as f:
-        json.dump(rounded(results), f, indent=1)
-    print("picked on the tuning clips (lowest skate, joint error at most 5 % above the shipped):", picked)
+    run_sweep({f"sigma_root={s}": DenoiseConfig(sigma_root=s) for s in SIGMA_ROOT},
+              "python tools/control_denoise_root.py --out tools/control_denoise_root_results.json")
 
 
 if __name__ == "__main__":
