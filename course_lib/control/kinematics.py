@@ -59,6 +59,7 @@ def world_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor, j
     want = None if joints is None else [skeleton.index(j) for j in joints]
     return chain_positions(root_q, theta, root, offsets, skeleton.parents, want)  # FK of their chains only
 
+
 TOES = ("LeftToeBase", "RightToeBase")  # the contact points of eq. (18): the joints foot_skate measures
 
 

@@ -30,8 +30,7 @@ import torch
 from course_lib.reproduce import CHECKPOINTS, rounded
 
 __all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "held_share", "parallel_map",
-           "denoise_clips",
-           "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
+           "denoise_clips", "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
            "recorded_results"]
 
 COMMAND = "python -m course_lib.reproduce control"
