@@ -423,7 +423,8 @@ def toes_relative(features: torch.Tensor, skeleton: Skeleton, offsets=None) -> t
 
 
 def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: float = 0.0,
-                   rule: str = "lower") -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+                   rule: str = "lower", toes: torch.Tensor | None = None
+                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """-> lowest toe height above the root (..., T), the anchor toe's floor-frame (x, z) on frames t-1 and t
     (..., T-1, 2) each: with rule "lower" the anchor of step t is the toe that is lower on frame t-1; with
     "contact" it follows the contact bits (`_contact_anchor`).
@@ -431,8 +432,9 @@ def _feet_geometry(features: torch.Tensor, skeleton: Skeleton, offsets, tau: flo
     tau > 0 (metres) makes the anchor soft: both toes weighted by softmax(-height / tau) of their heights above the
     root, the weights of frame t-1 for step t's anchor point and those of frame t for the height; tau -> 0 is the hard
     choice.  A hard anchor jumps from one toe to the other, so the slip must jump with it at every change of support;
-    a soft one moves between the toes over the frames both are near the floor."""
-    toes = toes_relative(features, skeleton, offsets)  # (..., T, 2, 3)
+    a soft one moves between the toes over the frames both are near the floor.  toes: `toes_relative` of the
+    features if the caller has it already."""
+    toes = toes_relative(features, skeleton, offsets) if toes is None else toes  # (..., T, 2, 3)
     if tau > 0:
         w = torch.softmax(-toes[..., 1] / tau, dim=-1)  # (..., T, 2)
         wp = w[..., :-1, :, None]  # frame t-1's weights, for both ends of step t
@@ -481,13 +483,14 @@ def anchor_on_feet(features: torch.Tensor, skeleton: Skeleton, offsets=None, tau
 
 
 def unanchor_feet(anchored: torch.Tensor, skeleton: Skeleton, offsets=None, tau: float = 0.0,
-                  rule: str = "lower") -> torch.Tensor:
+                  rule: str = "lower", toes: torch.Tensor | None = None) -> torch.Tensor:
     """The inverse of `anchor_on_feet`: (..., T, D) feet-anchored features -> raw state features, on the skeleton
     (offsets (J, 3), or (..., J, 3) one per motion) that decides where the toes are, with the same tau and rule
-    (anchoring leaves the pose and the contact bits as they are, so both sides pick the same anchor)."""
+    (anchoring leaves the pose and the contact bits as they are, so both sides pick the same anchor).
+    toes: `toes_relative(anchored, skeleton, offsets)` if the caller has it (it needs only the pose)."""
     _check_state_tensor(anchored, skeleton, "anchored")
     _check_tau(tau, rule)
-    low, prev, cur = _feet_geometry(anchored, skeleton, offsets, tau, rule)
+    low, prev, cur = _feet_geometry(anchored, skeleton, offsets, tau, rule, toes)
     out = anchored.clone()
     out[..., 3] = anchored[..., 3] - low
     out[..., 1:, 0:2] = anchored[..., 1:, 0:2] + prev - _turn(cur, anchored[..., 1:, 2])

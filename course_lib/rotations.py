@@ -226,6 +226,25 @@ def expmap_to_quat(r: torch.Tensor) -> torch.Tensor:
 
 
 @_tensor_args
+def expmap_to_matrix(r: torch.Tensor) -> torch.Tensor:
+    """(..., 3) axis * angle -> (..., 3, 3), Rodrigues' formula R = cos(a) I + sin(a)/a [r]x + (1 - cos(a))/a^2 r r^T
+    (a = |r|); the same rotation as ``quat_to_matrix(expmap_to_quat(r))`` in fewer operations (FK chains)."""
+    _check_last(r, 3, "expmap_to_matrix")
+    a, small = _safe_norm(r)
+    sq = (r * r).sum(-1)
+    # near 0: sin(a)/a -> 1 - a^2/6, (1 - cos a)/a^2 -> 1/2 - a^2/24, cos a -> 1 - a^2/2
+    sinc = torch.where(small, 1 - sq / 6.0, torch.sin(a) / a)
+    cosc = torch.where(small, 0.5 - sq / 24.0, (1 - torch.cos(a)) / (a * a))
+    cos = torch.where(small, 1 - sq / 2.0, torch.cos(a))
+    x, y, z = r.unbind(-1)
+    zero = torch.zeros_like(x)
+    cross = torch.stack((zero, -z, y, z, zero, -x, -y, x, zero), -1).unflatten(-1, (3, 3))  # [r]x
+    eye = torch.eye(3, dtype=r.dtype)
+    return (cos[..., None, None] * eye + sinc[..., None, None] * cross
+            + cosc[..., None, None] * (r[..., :, None] * r[..., None, :]))
+
+
+@_tensor_args
 def axis_angle_to_quat(axis: torch.Tensor, angle: torch.Tensor | float) -> torch.Tensor:
     """axis (..., 3) (any nonzero length), angle (...) radians -> (..., 4).
 

@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from course_lib.rotations import check_unit, expmap_to_quat, quat_mul, quat_rotate
+from course_lib.rotations import check_unit, expmap_to_matrix, quat_mul, quat_rotate, quat_to_matrix
 
 CANONICAL_JOINTS = (
     "Hips",
@@ -165,13 +165,29 @@ def chain_positions(root_rotation: torch.Tensor, expmaps: torch.Tensor, root_pos
     """Forward kinematics of some joints over their chains only (`chain_subset`): root_rotation (..., 4) a unit
     quaternion, expmaps (..., J-1, 3) the local rotations of joints 1..J-1 (eq. 3 of Wang et al.), root_positions
     (..., 3), offsets (J, 3) or (..., J, 3), joints: indices (default every joint) -> positions (..., len(joints), 3),
-    the same as `forward_kinematics`' for those joints."""
+    the same as `forward_kinematics`' for those joints.
+
+    With rotation matrices (Rodrigues), one matrix product per depth level for the rotations and one for the
+    offsets: the control energies of lesson 04 run this inside every rollout and its gradient, where the
+    quaternion chain's few dozen small operations per level took twice as long (forward + backward)."""
     J = len(parents)
     want = tuple(range(J)) if joints is None else tuple(int(j) for j in joints)
     idx, sub = chain_subset(tuple(int(p) for p in parents), want)
-    q = torch.cat((root_rotation.unsqueeze(-2), expmap_to_quat(expmaps[..., [j - 1 for j in idx[1:]], :])), -2)
-    pos = forward_kinematics(q, root_positions, offsets[..., list(idx), :], sub)[0]
-    return pos if idx == want else pos[..., [idx.index(j) for j in want], :]
+    chain = expmaps[..., [j - 1 for j in idx[1:]], :]
+    if not bool(torch.isfinite(chain.detach()).all()):  # a NaN angle would give NaN positions, not an error
+        raise ValueError("chain_positions: the expmaps contain NaN or inf")
+    local = expmap_to_matrix(chain)  # (..., n-1, 3, 3)
+    order, steps, inverse = _depth_levels(sub)
+    rot = torch.cat((quat_to_matrix(root_rotation).unsqueeze(-3), local), -3).index_select(-3, order)
+    off = offsets[..., list(idx), :].to(rot.dtype).index_select(-2, order)[..., None]  # (..., n, 3, 1) level order
+    glob, pos = [rot[..., :1, :, :]], [root_positions.unsqueeze(-2)]  # level 0: the root
+    for start, L, parent_sel in steps:
+        parent_rot = _take(glob[-1], parent_sel, -3)  # (..., L, 3, 3)
+        # x_j = x_p + R_p o_j ;  R_j = R_p r_j
+        pos.append(_take(pos[-1], parent_sel, -2) + (parent_rot @ off[..., start:start + L, :, :])[..., 0])
+        glob.append(parent_rot @ rot[..., start:start + L, :, :])
+    pick = torch.tensor([int(inverse[idx.index(j)]) for j in want])  # level order -> the joints asked for
+    return torch.cat(pos, -2).index_select(-2, pick)
 
 
 @lru_cache(maxsize=64)
@@ -202,9 +218,11 @@ def _depth_levels(parents: tuple[int, ...]) -> tuple[torch.Tensor, list[tuple[in
     return torch.tensor(order), steps, torch.tensor([order.index(j) for j in range(len(parents))])
 
 
-def _take(x: torch.Tensor, sel) -> torch.Tensor:
-    """Rows of x (L, ...) by a slice (a view, no copy) or an index tensor."""
-    return x[sel] if isinstance(sel, slice) else x.index_select(0, sel)
+def _take(x: torch.Tensor, sel, dim: int = 0) -> torch.Tensor:
+    """Rows of x along dim by a slice (a view, no copy) or an index tensor."""
+    if isinstance(sel, slice):
+        return x[(slice(None),) * (dim % x.dim()) + (sel,)]
+    return x.index_select(dim, sel)
 
 
 def forward_kinematics(

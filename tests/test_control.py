@@ -202,6 +202,12 @@ def test_rollout_with_random_noise_is_the_rnn_sampler_and_scores_its_frames(prio
     assert set(bits.unique().tolist()) <= {0.0, 1.0}
     smooth, _, _ = rollout(prior, raw.expand(3, -1, -1), state, eps * 0, g, walk.skeleton)
     assert float(prior.nll(raw.expand(3, -1, -1), smooth, state, walk.skeleton).mean()) < float(again.mean())
+    # the toes it returns (from un-anchoring) put the world toes where FK of its frames does
+    *_, rel = rollout(prior, raw.expand(3, -1, -1), state, eps, g, walk.skeleton, with_toes=True)
+    init = torch.tensor([0.3, -0.2, 0.7], dtype=torch.float64)
+    fk = toe_positions(frames, walk.skeleton, init)
+    assert rel.shape == (3, 8, 2, 3) and fk.abs().max() > 0.05
+    torch.testing.assert_close(toe_positions(frames, walk.skeleton, init, rel), fk, atol=1e-9, rtol=0)
 
 
 def test_initial_state_estimate_lowers_eq26_and_the_first_frame_hop(prior, walk):

@@ -219,6 +219,15 @@ def test_motion_from_positions_recovers_the_bones(seed):
         R.motion_from_positions(pos[:, :20], m.skeleton, m.fps)
 
 
+def test_local_positions_raise_on_nan_angles():
+    """FK by rotation matrices would pass a NaN angle on as NaN positions: it is an error instead."""
+    sk = Skeleton.canonical()
+    feats = torch.zeros(1, 3, R.feature_dim("state_features", sk.num_joints), dtype=torch.float64)
+    feats[0, 1, 7] = float("nan")
+    with pytest.raises(ValueError, match="NaN"):
+        R.local_positions(feats, sk)
+
+
 def test_local_positions_of_some_joints_are_those_of_the_full_fk():
     """local_positions(joints=...) runs FK over those joints' chains only; the positions are the full FK's."""
     sk = Skeleton.canonical()

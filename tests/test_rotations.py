@@ -87,6 +87,16 @@ def test_expmap_quat_round_trip(r):
 
 
 @SETTINGS
+@given(angles(high=3.1))
+def test_expmap_to_matrix_is_rodrigues_and_the_quaternion_route(r):
+    """Rodrigues' matrix equals scipy's rotvec matrix and quat_to_matrix(expmap_to_quat(r)), also at r = 0."""
+    r = np.concatenate((r, np.zeros((1, 3)), np.full((1, 3), 1e-7)))
+    m = rot.expmap_to_matrix(t64(r)).numpy()
+    np.testing.assert_allclose(m, Rotation.from_rotvec(r).as_matrix(), atol=ATOL)
+    np.testing.assert_allclose(m, rot.quat_to_matrix(rot.expmap_to_quat(t64(r))).numpy(), atol=ATOL)
+
+
+@SETTINGS
 @given(a=angles())
 def test_euler_matches_scipy_and_round_trips(a):
     """All six intrinsic (BVH) orders and their extrinsic twins, on the same angles."""
@@ -235,6 +245,7 @@ CONVERSIONS = {
     "matrix_to_quat": (rot.matrix_to_quat, lambda: [rot.quat_to_matrix(SPECIAL)]),
     "quat_to_expmap": (rot.quat_to_expmap, lambda: [SPECIAL]),
     "expmap_to_quat": (rot.expmap_to_quat, lambda: [rot.quat_to_expmap(SPECIAL)]),
+    "expmap_to_matrix": (rot.expmap_to_matrix, lambda: [rot.quat_to_expmap(SPECIAL)]),
     "quat_to_sixd": (rot.quat_to_sixd, lambda: [SPECIAL]),
     "sixd_to_quat": (rot.sixd_to_quat, lambda: [rot.quat_to_sixd(SPECIAL)]),
     "sixd_to_matrix": (rot.sixd_to_matrix, lambda: [rot.quat_to_sixd(SPECIAL)]),

@@ -63,6 +63,14 @@ def world_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor, j
 TOES = ("LeftToeBase", "RightToeBase")  # the contact points of eq. (18): the joints foot_skate measures
 
 
-def toe_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor) -> torch.Tensor:
-    """Raw state features (..., T, D) -> the world positions (..., T, 2, 3) of the left and right toes."""
-    return world_positions(raw, skeleton, init, TOES)
+def toe_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor,
+                  relative: torch.Tensor | None = None) -> torch.Tensor:
+    """Raw state features (..., T, D) -> the world positions (..., T, 2, 3) of the left and right toes.
+    relative: the toes relative to the root (..., T, 2, 3) (`representations.toes_relative` of raw), if known:
+    then no FK, world = (x, h, z) + R_y(yaw) relative."""
+    if relative is None:
+        return world_positions(raw, skeleton, init, TOES)
+    xz, yaw = integrate_root(raw[..., 0:2], raw[..., 2], init)
+    c, s = torch.cos(yaw)[..., None], torch.sin(yaw)[..., None]  # (..., T, 1): both toes turn with the root
+    rx, ry, rz = relative.unbind(-1)
+    return torch.stack((xz[..., 0:1] + c * rx + s * rz, raw[..., 3:4] + ry, xz[..., 1:2] - s * rx + c * rz), -1)

@@ -129,17 +129,20 @@ class RnnPrior:
         mean, std = self.model_norm
         return ((raw - mean) / std).float()
 
-    def from_model(self, y: torch.Tensor, skeleton: Skeleton) -> torch.Tensor:
-        """The inverse of `to_model`: (N, T, D) model features -> raw state features (float64)."""
+    def from_model(self, y: torch.Tensor, skeleton: Skeleton, with_toes: bool = False):
+        """The inverse of `to_model`: (N, T, D) model features -> raw state features (float64); with_toes: also
+        the toes relative to the root, (N, T, 2, 3) (`representations.toes_relative`), which un-anchoring
+        feet-anchored features computes on the way (None for a model of plain state features)."""
         mean, std = self.model_norm
-        raw = y.double() * std + mean
+        raw = self.clean(y.double() * std + mean)  # the pose as decoded, before the root is rebuilt from it
+        raw[..., self.contact_cols] = raw[..., self.contact_cols].round()  # 0/1 bits, not 2e-8 (float32)
+        toes = None
         if self.features == "feet_anchored":
             from course_lib import representations
 
-            raw = representations.unanchor_feet(raw, skeleton, tau=self.anchor_tau, rule=self.anchor_rule)
-        raw = self.clean(raw)
-        raw[..., self.contact_cols] = raw[..., self.contact_cols].round()  # 0/1 bits, not 2e-8 (float32)
-        return raw
+            toes = representations.toes_relative(raw, skeleton)
+            raw = representations.unanchor_feet(raw, skeleton, tau=self.anchor_tau, rule=self.anchor_rule, toes=toes)
+        return (raw, toes) if with_toes else raw
 
     def start_state(self, start: torch.Tensor, skeleton: Skeleton):
         """start (N, 2, D) raw: the two initial frames of sec. 4.1.4 -> the state after reading frame 0 (the

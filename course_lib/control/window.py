@@ -87,9 +87,11 @@ class WindowEnergy:
 
     # --- eq. (19) ----------------------------------------------------------------------------------------
 
-    def terms(self, raw: torch.Tensor, d: torch.Tensor | None = None, prior: torch.Tensor | None = None) -> dict:
+    def terms(self, raw: torch.Tensor, d: torch.Tensor | None = None, prior: torch.Tensor | None = None,
+              toes: torch.Tensor | None = None) -> dict:
         """Raw frames (N, T, D), d (N, T, D) or None -> {"prior", "noise", "control", "contact", "total"}: (N,).
-        prior: the frames' -log p (N,) if already known (`rollout` computes it on the way)."""
+        prior: the frames' -log p (N,) if already known (`rollout` computes it on the way); toes: their toes
+        relative to the root (N, T, 2, 3) if known (`rollout` again)."""
         N = len(raw)
         init = self.init.expand(N, 3)
         if prior is None:
@@ -97,7 +99,7 @@ class WindowEnergy:
         noise = torch.zeros(N, dtype=torch.float64) if d is None else noise_energy(d.double(), self.sigma_noise)
         xz, yaw = integrate_root(raw[..., 0:2], raw[..., 2], init)
         control = torch.zeros(N, dtype=torch.float64) if self.control is None else self.control(xz, yaw, raw)
-        toes = toe_positions(raw, self.skeleton, init)  # (N, T, 2, 3)
+        toes = toe_positions(raw, self.skeleton, init, toes)  # (N, T, 2, 3)
         bits = (raw[..., self.prior.contact_cols] > 0.5).double()
         if self.contact_height is not None:  # the toes low enough for foot_skate to count them (ours, see design.py)
             bits = torch.maximum(bits, (toes[..., 1].detach() < self.contact_height).double())
@@ -114,10 +116,11 @@ class WindowEnergy:
         from course_lib.control.rollout import rollout
 
         N = len(eps)
-        raw, nll, self.last_state = rollout(self.prior, self.prev.expand(N, -1, -1), expand_state(self.state, N),
-                                            eps, gumbel, self.skeleton, d, bias, self.prev_model)
+        raw, nll, self.last_state, toes = rollout(self.prior, self.prev.expand(N, -1, -1),
+                                                  expand_state(self.state, N), eps, gumbel, self.skeleton, d, bias,
+                                                  self.prev_model, with_toes=True)
         # last_state: after frames[:-1]
-        return raw, self.terms(raw, d, nll)
+        return raw, self.terms(raw, d, nll, toes)
 
     def end_pose(self, raw: torch.Tensor) -> torch.Tensor:
         """Raw frames (1, T, D) -> (3,) (x, z, yaw) of the last frame."""

@@ -238,10 +238,15 @@ class GmmRnn(nn.Module):
         return ((x[..., cols] * self.feature_std[cols] + self.feature_mean[cols]) > 0.5).to(x.dtype)
 
     def _residual_mask(self, x: torch.Tensor) -> torch.Tensor:
-        """(D,) 1 for residual columns, 0 for ``absolute_dims``."""
-        mask = torch.ones(self.config.dim, dtype=x.dtype, device=x.device)
-        mask[list(self.config.absolute_dims)] = 0.0
-        return mask
+        """(D,) 1 for residual columns, 0 for ``absolute_dims`` (kept between calls: generation reads one frame at
+        a time)."""
+        key = (x.dtype, x.device, tuple(self.config.absolute_dims))
+        cached = self.__dict__.get("_mask_cache")
+        if cached is None or cached[0] != key:
+            mask = torch.ones(self.config.dim, dtype=x.dtype, device=x.device)
+            mask[list(self.config.absolute_dims)] = 0.0
+            self.__dict__["_mask_cache"] = cached = (key, mask)
+        return cached[1]
 
     def loss(self, batch, noise: torch.Tensor | None = None) -> dict:
         """batch: (N, T, D) or {"x": ...} normalised windows -> {"loss", "nll"}: eq. (8) per frame.
