@@ -8,7 +8,10 @@ the shipped sampling (Graves' bias 2, angle noise 0.3, root noise 1) and at a fe
 the motions in range for 20 s (the measure of the test) and for 10 s, APD, the first second a motion leaves the
 range (median and the earliest), and, for the motions that leave, the mean knee flexion (the angle of the LeftLeg and
 RightLeg expmaps) over their last second against the in-range motions' (a crouch bends the knees; a fall tilts the
-root), and the root pitch.
+root), and the root pitch.  At each leaving motion's lowest frame it splits the root height into the lower toe's
+height (the feet-anchored features' own channel: a body that sinks through the floor) and the root's height above
+that toe (the pose: a body that folds), against the data's, and names the state-feature columns furthest from the
+data there (z-scores against the held-out clips).
 
     python tools/gmm_rnn_long_range.py --out tools/gmm_rnn_long_range_results.json   # ~6 min, one core
 """
@@ -20,14 +23,34 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from course_lib.evaluation.contacts import lower_toe
 from course_lib.experiments import gmm_rnn as X
-from course_lib.representations import encode_state_features
+from course_lib.representations import encode_state_features, feature_names
 
 SETTINGS = {"shipped (bias 2, angle noise 0.3)": {},
             "bias 3": {"sample_bias": 3.0},
             "angle noise 0.15": {"sample_angle_noise": 0.15},
             "angle noise 0 (component means)": {"sample_angle_noise": 0.0},
             "root noise 0.5": {"sample_root_noise": 0.5}}
+
+
+def lowest_frame_split(pos, h, raw, out_idx, sk, mocap) -> dict:
+    """At each leaving motion's lowest root frame: the lower toe's height, the root's height above it, and the six
+    state-feature columns furthest from the held-out clips' (mean |z| over the leaving motions)."""
+    lowest = h[out_idx].argmin(1)
+    toe = lower_toe(pos[out_idx], sk)[np.arange(len(out_idx)), lowest]
+    data_pos = [m.positions() for m in mocap]
+    data_toe = np.concatenate([lower_toe(p, m.skeleton) for p, m in zip(data_pos, mocap, strict=True)])
+    data_above = np.concatenate([p[:, 0, 1] for p in data_pos]) - data_toe
+    data_raw = np.concatenate([encode_state_features(m) for m in mocap])
+    z = np.abs((raw[out_idx, lowest] - data_raw.mean(0)) / (data_raw.std(0) + 1e-6)).mean(0)
+    names = feature_names("state_features", sk)
+    low = h[out_idx, lowest]
+    return {"lowest_root_m": float(low.mean()), "lower_toe_m": float(toe.mean()),
+            "root_above_toe_m": float((low - toe).mean()),
+            "data_lower_toe_m": [float(np.percentile(data_toe, 1)), float(np.percentile(data_toe, 99))],
+            "data_root_above_toe_m": [float(np.percentile(data_above, 1)), float(np.percentile(data_above, 99))],
+            "furthest_columns_mean_abs_z": {names[i]: float(z[i]) for i in np.argsort(-z)[:6]}}
 
 
 def run(spec, model, start, stats, mocap) -> dict:
@@ -54,7 +77,9 @@ def run(spec, model, start, stats, mocap) -> dict:
     ok_idx = np.where(inside.all(1))[0]
     data_flex = np.concatenate([np.stack([np.linalg.norm(encode_state_features(m)[:, 3 * j + 3:3 * j + 6], axis=-1)
                                           for j in knees], -1).mean(-1) for m in mocap])
-    return {"in_range_motions": int(inside.all(1).sum()), "in_range_first_10s": int(inside[:, :300].all(1).sum()),
+    split = lowest_frame_split(pos, h, raw, out_idx, sk, mocap) if len(out_idx) else None
+    return {"lowest_frame_split": split,
+            "in_range_motions": int(inside.all(1).sum()), "in_range_first_10s": int(inside[:, :300].all(1).sum()),
             "apd_m": apd(pos), "root_height": [float(h.min()), float(h.max())], "data_root_height": [lo, hi],
             "first_out_s_median": float(np.median(first_out)) if first_out else None,
             "first_out_s_min": float(min(first_out)) if first_out else None,
