@@ -13,9 +13,9 @@ then which window first goes wrong on seed 2 and its energy terms.
 import argparse
 import json
 
-import numpy as np
 import torch
 
+from course_lib.control import DesignConfig
 from course_lib.control.energy import nearest_on_polyline
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
@@ -24,18 +24,15 @@ from course_lib.experiments.gmm_rnn import rounded
 def windows(seed: int) -> dict:
     m, sec = C.offline_case("circle_r2", "walk", "ours", seed)
     c = C.curve("circle_r2")
-    xz = m.root_positions[:, [0, 2]]
-    dist = nearest_on_polyline(torch.from_numpy(xz), torch.from_numpy(c))[1].numpy()  # (T,) m
+    _, dist = nearest_on_polyline(torch.from_numpy(m.root_positions[:, [0, 2]]), torch.from_numpy(c))  # (T,) m
+    hop = DesignConfig().hop  # the frames each window keeps, after the two start frames
     rows = []
     for i, h in enumerate(m.meta["design"]["windows"]):
-        lo = 2 + 17 * i
-        kept = dist[lo:lo + 17]
+        kept = dist[2 + hop * i:2 + hop * (i + 1)].numpy()
         rows.append({"window": i, "control": h["terms"]["control"], "total": h["terms"]["total"],
                      "terms": h["terms"], "retried": bool(h.get("retried", False)),
-                     "mean_distance_m": float(kept.mean()) if len(kept) else None,
-                     "max_distance_m": float(kept.max()) if len(kept) else None})
-    return {"seconds": sec, "mean_root_to_curve_m": float(dist.mean()),
-            "end_distance_m": float(np.linalg.norm(xz[-1] - c[-1])), "windows": rows}
+                     "mean_distance_m": float(kept.mean()), "max_distance_m": float(kept.max())})
+    return {"seconds": sec, **C.measure_design(m, c), "windows": rows}
 
 
 def main() -> None:

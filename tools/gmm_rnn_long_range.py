@@ -1,17 +1,17 @@
 """Lesson 03 side experiment (issue 14): why do 14 of the shipped RNN's 100 twenty-second motions leave the data's
 root-height range, and does the sampling decide it?
 
-The long-generation test (experiments.gmm_rnn.long_generation: 100 motions of 20 s from the first held-out clip's
-first two frames) keeps every motion in range for the first 10 s and 86 of 100 for 20 s; the lowest root height
-reached is 0.13 m against the data's 0.68.  This tool generates the same 100 motions with the RNN alone (seed 0) at
-the shipped sampling (Graves' bias 2, angle noise 0.3, root noise 1) and at a few others, and reports, per setting:
-the motions in range for 20 s (the measure of the test) and for 10 s, APD, the first second a motion leaves the
-range (median and the earliest), and, for the motions that leave, the mean knee flexion (the angle of the LeftLeg and
-RightLeg expmaps) over their last second against the in-range motions' (a crouch bends the knees; a fall tilts the
-root), and the root pitch.  At each leaving motion's lowest frame it splits the root height into the lower toe's
-height (the feet-anchored features' own channel: a body that sinks through the floor) and the root's height above
-that toe (the pose: a body that folds), against the data's, and names the state-feature columns furthest from the
-data there (z-scores against the held-out clips).
+The long-generation test (experiments.gmm_rnn.long_generation on long_samples: 100 motions of 20 s from the first
+held-out clip's first two frames) keeps every motion in range for the first 10 s and 86 of 100 for 20 s; the lowest
+root height reached is 0.13 m against the data's 0.68. This tool generates the same 100 motions with the RNN alone
+(seed 0) at the shipped sampling (Graves' bias 2, angle noise 0.3, root noise 1) and at a few others, and reports,
+per setting: the motions in range for 20 s (the measure of the test) and for 10 s, APD, the first second a motion
+leaves the range (median and the earliest), and, for the motions that leave, the mean knee flexion (the angle of the
+LeftLeg and RightLeg expmaps) over their last second against the in-range motions' (a crouch bends the knees; a fall
+tilts the root), and the root pitch. At each leaving motion's lowest frame it splits the root height into the lower
+toe's height (the feet-anchored features' own channel: a body that sinks through the floor) and the root's height
+above that toe (the pose: a body that folds), against the data's, and names the state-feature columns furthest from
+the data there (z-scores against the held-out clips).
 
     python tools/gmm_rnn_long_range.py --out tools/gmm_rnn_long_range_results.json   # ~6 min, one core
 """
@@ -27,6 +27,7 @@ from course_lib.evaluation.contacts import lower_toe
 from course_lib.experiments import gmm_rnn as X
 from course_lib.representations import encode_state_features, feature_names
 
+PITCH = feature_names("state_features").index("root_pitch")
 SETTINGS = {"shipped (bias 2, angle noise 0.3)": {},
             "bias 3": {"sample_bias": 3.0},
             "angle noise 0.15": {"sample_angle_noise": 0.15},
@@ -56,11 +57,7 @@ def lowest_frame_split(pos, h, raw, out_idx, sk, mocap) -> dict:
 def run(spec, model, start, stats, mocap) -> dict:
     from course_lib.evaluation import apd
 
-    T = int(round(spec.random_seconds * spec.fps))
-    x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
-    feats = X.generate(model, x0.contiguous(), T - 2, X.clip_offsets([start] * spec.n_random), stats,
-                       torch.Generator().manual_seed(0), spec.sample_bias, spec.sample_angle_noise,
-                       spec.sample_root_noise)
+    feats = X.long_samples(model, start, stats, spec, seed=0)
     motions = X.to_motions(feats, stats, [start] * len(feats), spec.fps)
     pos = np.stack([m.positions() for m in motions])
     heights = np.concatenate([m.root_positions[:, 1] for m in mocap])
@@ -86,7 +83,7 @@ def run(spec, model, start, stats, mocap) -> dict:
             "knee_flexion_last_s_out_rad": float(flex[out_idx, -last:].mean()) if len(out_idx) else None,
             "knee_flexion_last_s_in_rad": float(flex[ok_idx, -last:].mean()) if len(ok_idx) else None,
             "knee_flexion_data_rad": [float(np.percentile(data_flex, 1)), float(np.percentile(data_flex, 99))],
-            "root_pitch_last_s_out_rad": float(np.abs(raw[out_idx, -last:, 4]).mean()) if len(out_idx) else None,
+            "root_pitch_last_s_out_rad": float(np.abs(raw[out_idx, -last:, PITCH]).mean()) if len(out_idx) else None,
             "root_height_last_s_out_m": float(h[out_idx, -last:].mean()) if len(out_idx) else None}
 
 

@@ -410,6 +410,16 @@ def contact_bits(features: torch.Tensor, stats) -> np.ndarray:
     return features[..., -2:].double().numpy() * stats[1][-2:] + stats[0][-2:]
 
 
+def long_samples(model, start: Motion, stats, spec: Lesson03Spec, seed: int = 0) -> torch.Tensor:
+    """spec.n_random RNN motions of spec.random_seconds from start's first two frames, at spec's sampling
+    -> normalised state features (N, T, D)."""
+    T = int(round(spec.random_seconds * spec.fps))
+    x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
+    return generate(model, x0.contiguous(), T - 2, clip_offsets([start] * spec.n_random), stats,
+                    torch.Generator().manual_seed(seed), spec.sample_bias, spec.sample_angle_noise,
+                    spec.sample_root_noise)
+
+
 def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mocap: list[Motion],
                     seed: int = 0) -> dict:
     """spec.n_random motions of spec.random_seconds from start's first two frames, RNN and refined (refiner None:
@@ -422,11 +432,8 @@ def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mo
     whose last-5-s joint-speed variance is under `freeze_floor`) and APD (m) over the whole motion."""
     from course_lib.evaluation import apd
 
-    T = int(round(spec.random_seconds * spec.fps))
-    x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
-    rnn = generate(model, x0.contiguous(), T - 2, clip_offsets([start] * spec.n_random), stats,
-                   torch.Generator().manual_seed(seed), spec.sample_bias, spec.sample_angle_noise,
-                   spec.sample_root_noise)
+    rnn = long_samples(model, start, stats, spec, seed)
+    T = rnn.shape[1]
     sets = {"RNN": rnn}
     if refiner is not None:
         with torch.no_grad():
