@@ -239,3 +239,50 @@ def test_bernoulli_contacts_likelihood_and_samples():
     out = m.generate(x[:, :2], 6, generator=torch.Generator().manual_seed(1), contact_mode="none")
     raw = out[:, 2:, 66:] * 0.5 + 0.4
     assert torch.all((raw.abs() < 1e-6) | ((raw - 1).abs() < 1e-6))
+
+
+def test_joint_limits_clamp_each_sampled_column_and_nothing_else():
+    """limits: a column with low = high = c is sampled as c every frame, a column with a band stays inside it, the
+    free (+-inf) columns draw exactly what they draw without limits (the same generator)."""
+    torch.manual_seed(0)
+    m = GmmRnn(tiny()).eval()
+    x0 = torch.randn(3, 2, 68)
+    low, high = torch.full((68,), -math.inf), torch.full((68,), math.inf)
+    low[7], high[7] = 0.25, 0.25
+    low[8], high[8] = -0.1, 0.1
+    free = m.generate(x0, 12, generator=torch.Generator().manual_seed(2), contact_mode="none")
+    held = m.generate(x0, 12, generator=torch.Generator().manual_seed(2), contact_mode="none", limits=(low, high))
+    assert torch.equal(held[:, 2:, 7], torch.full((3, 12), 0.25))
+    assert held[:, 2:, 8].abs().max() <= 0.1 and free[:, 2:, 8].abs().max() > 0.1  # the band binds
+    assert torch.equal(held[:, 2, 9:], free[:, 2, 9:])  # first sampled frame: free columns untouched
+    assert torch.equal(held[:, :2], x0)  # the given frames are not clamped
+
+
+def test_stored_limits_round_trip_and_default_to_none(tmp_path):
+    from course_lib.training import load_checkpoint, save_checkpoint
+
+    m = GmmRnn(tiny())
+    assert torch.isinf(m.limits()[0]).all() and (m.limits()[0] < 0).all() and (m.limits()[1] > 0).all()
+    low, high = -torch.arange(68.0) - 1, torch.arange(68.0) + 1
+    m.set_limits(low, high)
+    save_checkpoint(m, m.config, tmp_path / "g.pt", command="pytest")
+    back = load_checkpoint(tmp_path / "g.pt", GmmRnn, GmmRnnConfig)
+    assert torch.equal(back.limits()[0], low) and torch.equal(back.limits()[1], high)
+    old = {k: v for k, v in m.state_dict().items() if k not in ("feature_low", "feature_high")}
+    fresh = GmmRnn(tiny())
+    fresh.load_state_dict(old)  # a checkpoint saved before the limits existed: no limits
+    assert torch.isinf(fresh.limits()[1]).all()
+
+
+@pytest.mark.parametrize("limits, match", [
+    ((torch.zeros(67), torch.ones(67)), r"two \(68,\) bounds"),
+    ((torch.full((68,), math.nan), torch.ones(68)), "NaN"),
+    ((torch.ones(68), torch.zeros(68)), "low > high in columns"),
+    ((torch.zeros(68),), r"\(low, high\)"),
+])
+def test_bad_limits_are_named(limits, match):
+    m = GmmRnn(tiny()).eval()
+    with pytest.raises(ValueError, match=match):
+        m.generate(torch.zeros(1, 2, 68), 2, limits=limits)
+    with pytest.raises(ValueError, match=match):
+        m.set_limits(*limits) if len(limits) == 2 else m.check_limits(limits)

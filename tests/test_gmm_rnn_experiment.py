@@ -176,3 +176,32 @@ def test_open_causes_tool_known_answers(setup):
     assert [(u["motion"], u["frames"]) for u in rep["ungrounded"]] == [(1, [3])]
     low, slow = tool.foot_low_slow(clips[:2], 30.0)
     assert np.array_equal(slow, np.stack([c.contacts() for c in clips[:2]])) and (low >= slow).all()
+
+
+def test_training_limits_bound_the_training_angles_only(setup):
+    """Known answer: every training frame's joint angles (in the model's features) lie within the limits and each
+    bound is reached by some frame; the root columns and the contact bits are free."""
+    clips, ds, model, refiners, spec = setup
+    low, high = X.training_limits(model, ds)
+    feats, _ = X.rnn_features(ds, model.config.features)
+    y = torch.from_numpy(np.concatenate(feats))
+    angles = slice(6, 66)
+    assert torch.isinf(low[:6]).all() and torch.isinf(high[66:]).all()
+    assert (y[:, angles] >= low[angles] - 1e-5).all() and (y[:, angles] <= high[angles] + 1e-5).all()
+    assert torch.allclose(y[:, angles].min(0).values, low[angles], atol=1e-5)
+    assert torch.allclose(y[:, angles].max(0).values, high[angles], atol=1e-5)
+
+
+def test_generation_with_stored_limits_stays_within_them(setup):
+    clips, ds, model, refiners, spec = setup
+    import copy
+    limited = copy.deepcopy(model)
+    limited.set_limits(*X.training_limits(limited, ds))
+    x0 = torch.from_numpy(np.stack([f[:2] for f in ds.features[:3]])).float()
+    off = X.clip_offsets(ds.clips[:3])
+    out = X.generate(limited, x0, 20, off, ds.stats, torch.Generator().manual_seed(0), limits=True)
+    y = X.to_rnn(out, ds.stats, limited, off)[:, 2:]
+    low, high = limited.limits()
+    assert (y[..., 6:66] >= low[6:66] - 1e-4).all() and (y[..., 6:66] <= high[6:66] + 1e-4).all()
+    free = X.generate(limited, x0, 20, off, ds.stats, torch.Generator().manual_seed(0), limits=False)
+    assert not torch.allclose(free, out)  # an untrained RNN leaves the training range; the limits bind

@@ -80,6 +80,8 @@ class DesignConfig:
     space: str = "noise"  # the variables: "noise" (the sampler's eps, Gumbel draws, d: ours) or "frames" (the paper's)
     retry_control: float | None = 50.0  # a window whose control energy ends above this is searched again ...
     retry_factor: int = 4  # ... from this many times the candidates (fresh samples); the better end is kept
+    retry_rise: float | None = 200.0  # so is a window whose total energy ends this far above the median of the
+    # windows before it (a drift into poses the prior finds unlikely shows there before the control term rises)
     contact_height: float | None = CONTACT_HEIGHT["ToeBase"]  # m: eq. (18) also holds toes below this height,
     # whatever their bits (ours; None: the bits alone, the paper's)
 
@@ -211,7 +213,7 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
         energy = WindowEnergy(prior, skel, prev, state, init, control(init, total - done), plane,
                               contact_height=config.contact_height)
         raw, u, hist = solve(energy, carry, config, g)
-        if config.retry_control is not None and hist["terms"]["control"] > config.retry_control:
+        if _needs_retry(hist["terms"], [w["terms"]["total"] for w in windows], config):
             from dataclasses import replace
 
             wide = replace(config, candidates=config.candidates * config.retry_factor)  # fresh, more samples
@@ -230,6 +232,14 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
         windows.append(hist)
         done += k
     return torch.cat(out, 0)[:total], {"windows": windows, "seconds": time.perf_counter() - t0}
+
+
+def _needs_retry(terms: dict, before: list[float], config: DesignConfig) -> bool:
+    """Is a window searched again: its control energy above ``retry_control``, or its total energy more than
+    ``retry_rise`` above the median total of the windows ``before`` it?"""
+    if config.retry_control is not None and terms["control"] > config.retry_control:
+        return True
+    return config.retry_rise is not None and bool(before) and terms["total"] > np.median(before) + config.retry_rise
 
 
 def _solve_window(energy: WindowEnergy, carry, config: DesignConfig, g: torch.Generator):

@@ -65,6 +65,9 @@ class Lesson03Spec:
     rnn_absolute_dims: tuple = (0, 1, 3, 4, 5)
     rnn_fixed_dims: bool = True  # the columns the data never vary are not modelled
     rnn_bernoulli_contacts: bool = True  # contact bits from a Bernoulli head
+    # joint limits at generation (not in the paper; GmmRnn "differs"): each sampled frame's joint angles clamped to
+    # the training data's range (stored with the RNN, training_limits); False samples without them
+    joint_limits: bool = True
     contact_method: str = "legs"  # "legs": root + leg angles (plant_feet); "root": the root alone (enforce_contacts)
     contact_smooth: int = 5  # frames over which the "root" contact handling's corrections are averaged
     window_stride: int = 5  # frames between training windows
@@ -195,6 +198,20 @@ def rnn_features(ds: WindowDataset, kind: str = "feet_anchored", tau: float = 0.
     return [((r - mean) / std).astype(np.float32) for r in raw], (mean, std)
 
 
+def training_limits(model, ds: WindowDataset) -> tuple[torch.Tensor, torch.Tensor]:
+    """The joint limits `GmmRnn.set_limits` stores: each joint-angle column's [min, max] over ds's clips (mirrored
+    ones included) in the model's normalised features; +-inf on the root columns and the contact bits."""
+    c = model.config
+    feats, (mean, std) = rnn_features(ds, c.features, c.anchor_tau, c.anchor_rule)
+    raw = np.concatenate(feats).astype(np.float64) * std + mean
+    m, s = model.feature_mean.double().numpy(), model.feature_std.double().numpy()
+    low, high = np.full(c.dim, -np.inf), np.full(c.dim, np.inf)
+    angles = slice(6, c.dim - len(c.contact_dims))
+    low[angles] = (raw.min(0)[angles] - m[angles]) / s[angles]
+    high[angles] = (raw.max(0)[angles] - m[angles]) / s[angles]
+    return torch.from_numpy(low).float(), torch.from_numpy(high).float()
+
+
 def _rnn_stats(model) -> tuple[torch.Tensor, torch.Tensor]:
     return model.feature_mean.double(), model.feature_std.double()
 
@@ -237,13 +254,15 @@ def angle_noise(model, scale: float, root: float = 1.0) -> torch.Tensor | None:
 
 
 def generate(model, x0: torch.Tensor, steps: int, offsets: torch.Tensor, stats, generator=None,
-             bias: float = 2.0, angle_scale: float = 1.0, root_scale: float = 1.0) -> torch.Tensor:
+             bias: float = 2.0, angle_scale: float = 1.0, root_scale: float = 1.0,
+             limits: bool = False) -> torch.Tensor:
     """Sec. 4.1.4 in state features: x0 (N, 2, D) two normalised frames (stats) of motions on skeletons offsets
     (N, J, 3) -> (N, 2 + steps, D) normalised state features; the model samples in its own features (the joint
-    angles' per-dimension draw scaled by angle_scale)."""
+    angles' per-dimension draw scaled by angle_scale; limits: within the model's stored joint limits)."""
     y0 = to_rnn(x0, stats, model, offsets)
     y = model.generate(y0, steps, generator=generator, stats=_rnn_stats(model), bias=bias,
-                       noise_scale=angle_noise(model, angle_scale, root_scale))
+                       noise_scale=angle_noise(model, angle_scale, root_scale),
+                       limits=model.limits() if limits else None)
     return torch.cat((x0, from_rnn(y, stats, model, offsets)[:, 2:]), 1)
 
 
@@ -287,7 +306,7 @@ class RnnPool(NamedTuple):
 
 def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> RnnPool:
     """spec.pool_sequences RNN motions of spec.pool_frames frames from random training frames, with the offsets of
-    the clip each one starts from."""
+    the clip each one starts from; sampled without joint limits (the shipped refiners learned on these)."""
     g = torch.Generator().manual_seed(seed)
     x0, off = window_sampler(ds.features, 2, spec.pool_sequences, g, clip_offsets(ds.clips))()
     feats = generate(model, x0, spec.pool_frames - 2, off, ds.stats, generator=g, bias=spec.sample_bias,
@@ -366,7 +385,7 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
     T = int(round(spec.eval_seconds * spec.fps))
     x0 = torch.from_numpy(np.stack([(encode_state_features(m)[:2] - stats[0]) / stats[1] for m in clips])).float()
     out = {"RNN": generate(model, x0, T - 2, clip_offsets(clips), stats, torch.Generator().manual_seed(seed),
-                           spec.sample_bias, spec.sample_angle_noise, spec.sample_root_noise)}
+                           spec.sample_bias, spec.sample_angle_noise, spec.sample_root_noise, spec.joint_limits)}
     with torch.no_grad():
         out.update({name: r(out["RNN"], clip_offsets(clips)) for name, r in refiners.items()})
     return out
@@ -417,7 +436,7 @@ def long_samples(model, start: Motion, stats, spec: Lesson03Spec, seed: int = 0)
     x0 = torch.from_numpy((encode_state_features(start)[:2] - stats[0]) / stats[1]).float().expand(spec.n_random, 2, -1)
     return generate(model, x0.contiguous(), T - 2, clip_offsets([start] * spec.n_random), stats,
                     torch.Generator().manual_seed(seed), spec.sample_bias, spec.sample_angle_noise,
-                    spec.sample_root_noise)
+                    spec.sample_root_noise, spec.joint_limits)
 
 
 def long_generation(model, refiner, start: Motion, stats, spec: Lesson03Spec, mocap: list[Motion],
@@ -562,6 +581,7 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
                                   "finetune_final_nll": ft.final("loss", 50) if ft.num_steps else None}),
             "spec": rounded(asdict(spec)), "loss_every_20_steps": _every_20(hist),
             "finetune_loss_every_20_steps": _every_20(ft)})
+    store_limits(ds, checkpoints)  # the joint limits, from the training clips, saved with the RNN (any mode)
     if not only or "gans" in only:
         model = load_models_rnn(checkpoints)
         pool = rnn_pool(model, ds, spec, seed)
@@ -572,6 +592,7 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
                                 overwrite=True, metrics={**common, "refiner_seed": s, **rounded(_gan_summary(h)),
                                                          "history": rounded(_history_dict(h), 5)})
     results = rounded(evaluate_seeds(spec, test, seed, checkpoints))
+    results["joint_limits"] = spec.joint_limits
     results["seconds"] = round(time.perf_counter() - t0, 1)
     record_results(results, checkpoints)
     return results
@@ -585,18 +606,31 @@ def load_models_rnn(checkpoints: Path = CHECKPOINTS):
     return load_checkpoint(checkpoints / "gmm_rnn.pt", GmmRnn, GmmRnnConfig)
 
 
-def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
-    """Store the evaluation in the GMM-RNN's manifest entry (``metrics["results"]``) so the notebook can show
-    the 120-clip, 3-seed numbers in CI mode without re-running it."""
+def _resave_rnn(checkpoints: Path, change_model=None, **metrics) -> dict:
+    """Load checkpoints/gmm_rnn.pt, apply change_model(model), save it again under its recorded command with its
+    metrics updated by ``metrics``."""
     import json
 
     from course_lib.training import save_checkpoint
 
     entry = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]
     model = load_models_rnn(checkpoints)
+    if change_model is not None:
+        change_model(model)
     return save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=entry["command"],
-                           metrics={**entry["metrics"], "results": results}, overwrite=True,
+                           metrics={**entry["metrics"], **metrics}, overwrite=True,
                            environment=entry.get("trained_on", {}))
+
+
+def store_limits(ds: WindowDataset, checkpoints: Path = CHECKPOINTS) -> dict:
+    """Save the shipped RNN with `training_limits` of ds (its training windows) as its joint limits."""
+    return _resave_rnn(checkpoints, lambda model: model.set_limits(*training_limits(model, ds)))
+
+
+def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
+    """Store the evaluation in the GMM-RNN's manifest entry (``metrics["results"]``) so the notebook can show
+    the 120-clip, 3-seed numbers in CI mode without re-running it."""
+    return _resave_rnn(checkpoints, results=results)
 
 
 def _every_20(hist) -> list:

@@ -43,6 +43,10 @@ Differs from the paper:
   saved with the weights), and ``features`` names them: lesson 03's RNN reads ``feet_anchored`` features
   (representations.anchor_on_feet: the root's floor step as the anchor toe's slip, the root height as the
   lower toe's height), so a planted foot stays planted whatever pose is predicted.
+- ``limits`` at sampling (not in the paper): each sampled frame's columns clamped to a given [low, high], a joint
+  limit such as a rig has; `set_limits` stores them with the weights (lesson 03: the joint angles' range in the
+  training data, experiments.gmm_rnn.training_limits).  Without them the residual angles' errors add up over 20 s
+  until the pose folds (tools/gmm_rnn_long_range.py).
 - ``noise_scale`` at sampling (not in the paper) scales each column's draw around the chosen component's
   mean; lesson 03 draws the joint angles at 0.3 of it (see tools/gmm_rnn_skate.py).
 - ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i, except for the
@@ -176,12 +180,15 @@ class GmmRnn(nn.Module):
         mean, std = (np.zeros(c.dim), np.ones(c.dim)) if stats is None else stats
         self.register_buffer("feature_mean", torch.as_tensor(np.asarray(mean), dtype=torch.float32).reshape(c.dim))
         self.register_buffer("feature_std", torch.as_tensor(np.asarray(std), dtype=torch.float32).reshape(c.dim))
+        # joint limits, normalised (see "differs"): +-inf (none) until set_limits; saved with the weights
+        self.register_buffer("feature_low", torch.full((c.dim,), -math.inf))
+        self.register_buffer("feature_high", torch.full((c.dim,), math.inf))
         if c.grad_clip_value is not None:
             for p in self.parameters():
                 p.register_hook(_ClampGrad(c.grad_clip_value))
 
     def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):
-        for key in ("feature_mean", "feature_std"):  # checkpoints saved before these buffers: identity
+        for key in ("feature_mean", "feature_std", "feature_low", "feature_high"):  # older checkpoints: no change
             state_dict.setdefault(prefix + key, getattr(self, key).clone())
         super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
 
@@ -332,26 +339,55 @@ class GmmRnn(nn.Module):
     @torch.no_grad()
     def sample_step(self, x_t: torch.Tensor, state=None, generator: torch.Generator | None = None,
                     stats=None, contact_mode: str = "threshold", bias: float = 0.0,
-                    noise_scale: torch.Tensor | None = None) -> tuple[torch.Tensor, tuple]:
-        """One step of sec. 4.1.4: x_t (N, D), state (h_t, C_t) or None -> x_{t+1} (N, D), new state."""
+                    noise_scale: torch.Tensor | None = None, limits=None) -> tuple[torch.Tensor, tuple]:
+        """One step of sec. 4.1.4: x_t (N, D), state (h_t, C_t) or None -> x_{t+1} (N, D), new state.
+        limits: None or (low (D,), high (D,)) normalised bounds each sampled column is clamped to (+-inf: free)."""
         params, state = self(x_t[:, None], state)
         x_next = self.sample_mixture({k: v[:, -1] for k, v in params.items()}, generator, bias, noise_scale)
         if self.config.fixed_dims:  # not modelled: the data's constants carry over
             cols = list(self.config.fixed_dims)
             x_next[:, cols] = x_t[:, cols]
+        if limits is not None:  # joint limits (see "differs")
+            x_next = torch.clamp(x_next, *(torch.as_tensor(b, dtype=x_next.dtype) for b in limits))
         return self.fix_contacts(x_next, stats, contact_mode), state
+
+    def set_limits(self, low, high) -> None:
+        """Store joint limits with the model: low, high (D,) normalised bounds (+-inf: free); see `limits`."""
+        self.check_limits((low, high))
+        self.feature_low.copy_(torch.as_tensor(low, dtype=torch.float32))
+        self.feature_high.copy_(torch.as_tensor(high, dtype=torch.float32))
+
+    def limits(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The stored joint limits (low (D,), high (D,)), normalised; +-inf where none were set."""
+        return self.feature_low, self.feature_high
+
+    def check_limits(self, limits) -> None:
+        """limits: None or (low, high), each (D,) with low <= high and no NaN; otherwise ValueError naming it."""
+        if limits is None:
+            return
+        if len(limits) != 2:
+            raise ValueError(f"limits must be (low, high), got {len(limits)} items")
+        low, high = (torch.as_tensor(b) for b in limits)
+        D = self.config.dim
+        if low.shape != (D,) or high.shape != (D,):
+            raise ValueError(f"limits must be two ({D},) bounds, got {tuple(low.shape)} and {tuple(high.shape)}")
+        if torch.isnan(low).any() or torch.isnan(high).any():
+            raise ValueError("limits contain NaN")
+        if (low > high).any():
+            raise ValueError(f"limits: low > high in columns {torch.nonzero(low > high)[:, 0].tolist()}")
 
     @torch.no_grad()
     def generate(self, x0: torch.Tensor, steps: int, generator: torch.Generator | None = None,
                  stats=None, contact_mode: str = "threshold", bias: float = 0.0,
-                 noise_scale: torch.Tensor | None = None) -> torch.Tensor:
+                 noise_scale: torch.Tensor | None = None, limits=None) -> torch.Tensor:
         """x0: (N, 2, D) two initial frames (normalised) -> (N, 2 + steps, D): x0 then ``steps`` sampled frames.
 
         The network reads x_0 and x_1, then each sample x_{t+1} is fed back (sec. 4.1.4).  stats: the
         dataset's (mean, std), used only to make the contact bits binary in raw units; noise_scale: see
-        `sample_mixture`.
+        `sample_mixture`; limits: see `sample_step`.
         """
         self._check(x0, "x0")
+        self.check_limits(limits)
         if x0.shape[1] != 2:
             raise ValueError(f"x0 must hold two initial frames (N, 2, {self.config.dim}), got {tuple(x0.shape)}")
         if int(steps) != steps or steps < 0:
@@ -359,7 +395,7 @@ class GmmRnn(nn.Module):
         _, state = self(x0[:, :1])  # read x_0; x_1 is the first input of the loop
         frames, x_t = [x0[:, 0], x0[:, 1]], x0[:, 1]
         for _ in range(int(steps)):
-            x_t, state = self.sample_step(x_t, state, generator, stats, contact_mode, bias, noise_scale)
+            x_t, state = self.sample_step(x_t, state, generator, stats, contact_mode, bias, noise_scale, limits)
             frames.append(x_t)
         return torch.stack(frames, dim=1)
 
