@@ -263,12 +263,12 @@ def test_design_over_frames_scores_the_same_candidates_and_searches_them(prior, 
     from course_lib.control import DesignConfig, design_motion
 
     curve = np.array([[0.0, 0.0], [0.0, 2.4]])
-    pick = dict(use_pso=False, use_lbfgs=False, retry_control=None)
+    pick = dict(use_pso=False, use_lbfgs=False, retry_control=None, retry_rise=None)
     a = design_motion(curve, 1.5, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(**pick))
     b = design_motion(curve, 1.5, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(space="frames", **pick))
     assert np.abs(a.positions() - b.positions()).max() < 1e-6
     c = design_motion(curve, 1.5, start=walk, seed=0, prior=prior,
-                      config=DesignConfig.tiny(space="frames", retry_control=None))
+                      config=DesignConfig.tiny(space="frames", retry_control=None, retry_rise=None))
     for w in c.meta["design"]["windows"]:
         assert w["terms"]["total"] <= w["pso"][0] + 1e-6
     with pytest.raises(ValueError, match="space"):
@@ -530,11 +530,29 @@ def test_a_window_whose_control_energy_stays_high_is_searched_again(prior, walk)
 
     curve = np.array([[0.0, 0.0], [0.0, 2.4]])
     always = design_motion(curve, 2.0, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(retry_control=-1.0))
-    never = design_motion(curve, 2.0, start=walk, seed=0, prior=prior, config=DesignConfig.tiny(retry_control=None))
+    never = design_motion(curve, 2.0, start=walk, seed=0, prior=prior,
+                          config=DesignConfig.tiny(retry_control=None, retry_rise=None))
     wa, wn = always.meta["design"]["windows"], never.meta["design"]["windows"]
     assert all(w.get("retried") for w in wa) and not any(w.get("retried") for w in wn)
     # the first window starts from the same state and draws: the retried one keeps the better of two searches
     assert wa[0]["terms"]["total"] <= wn[0]["terms"]["total"] + 1e-6
+
+
+def test_retry_rule_known_answers():
+    """A window is searched again when its control energy passes retry_control, or when its total energy ends more
+    than retry_rise above the median total of the windows before it (lesson 04's seed-2 circle: -1553 after a median
+    near -1990); the first window has nothing to compare with."""
+    from course_lib.control import DesignConfig
+    from course_lib.control.design import _needs_retry
+
+    c = DesignConfig(retry_control=50.0, retry_rise=200.0)
+    before = [-1186.0, -1981.0, -2016.0, -1976.0, -2006.0]  # median -1981
+    assert not _needs_retry({"control": 12.4, "total": -1800.0}, before, c)  # 181 above: not yet
+    assert _needs_retry({"control": 12.4, "total": -1553.0}, before, c)  # 428 above
+    assert _needs_retry({"control": 51.0, "total": -2100.0}, before, c)  # the control energy alone
+    assert not _needs_retry({"control": 12.4, "total": 1e6}, [], c)  # window 0
+    off = DesignConfig(retry_control=None, retry_rise=None)
+    assert not _needs_retry({"control": 1e6, "total": 1e6}, before, off)
 
 
 def test_denoise_problem_data_terms_known_answers(prior, walk):

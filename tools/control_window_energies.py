@@ -36,7 +36,8 @@ def main(argv=None):
 
     c = X.curve(args.curve)
     t0 = time.perf_counter()
-    m = design_motion(c, X.seconds_for(c, args.gait), args.gait, seed=0, config=DesignConfig(retry_control=None))
+    m = design_motion(c, X.seconds_for(c, args.gait), args.gait, seed=0,
+                      config=DesignConfig(retry_control=None, retry_rise=None))
     seconds = time.perf_counter() - t0
     xz = m.root_positions[:, [0, 2]]
     _, dist = nearest_on_polyline(torch.from_numpy(xz), torch.from_numpy(c))

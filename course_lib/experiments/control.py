@@ -86,9 +86,10 @@ def _config(method: str, scale: float = 1.0):
         return DesignConfig()
     if method == "lbfgs":  # L-BFGS from one RNN sample, no PSO (baseline d); no retries (they add samples)
         return DesignConfig(candidates=1, use_pso=False, lbfgs=LbfgsConfig(iterations=max(1, round(40 * scale))),
-                            retry_control=None)
+                            retry_control=None, retry_rise=None)
     if method == "best_of_n":  # sampling alone, no gradients (baseline c)
-        return DesignConfig(candidates=max(1, round(64 * scale)), use_pso=False, use_lbfgs=False, retry_control=None)
+        return DesignConfig(candidates=max(1, round(64 * scale)), use_pso=False, use_lbfgs=False, retry_control=None,
+                            retry_rise=None)
     raise ValueError(method)
 
 
