@@ -35,7 +35,7 @@ given; ours are in `DesignConfig`. The variables are the RNN sampler's noise (ep
 themselves (rollout.py says why); L-BFGS holds the Gumbel variables (the mixture components) fixed.
 Eq. (18)'s contact labels c_i are the RNN's contact bits or a toe below 5 cm (``contact_height``, foot_skate's own
 height; ours): with the bits alone the walking S-curve, U-turn and polyline skated 0.27 / 0.17 / 0.29 m/s, from low
-toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, the recorded run).
+toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, tools/control_contact_height.py).
 ``DesignConfig(space="frames")`` searches the paper's variables instead (tools/control_frame_space.py measures both:
 over frames L-BFGS alone misses the curve's end by metres, and every frame-space search ends farther than ours).
 """
