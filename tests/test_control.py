@@ -477,6 +477,35 @@ def test_window_energy_for_motion_scores_mocap_below_jittered_frames(prior, walk
     assert float(energy.terms(frames)["prior"]) < float(energy.terms(prior.clean(jitter))["prior"]) - 100
 
 
+def test_contact_weight_scales_eq18_in_the_total_and_reaches_the_design(prior, walk, monkeypatch):
+    """WindowEnergy's weights multiply a term in eq. (19)'s total and nothing else; DesignConfig.contact_weight is
+    the weight the offline design gives eq. (18) (1 by default: the paper's sum)."""
+    import course_lib.control.design as design
+    from course_lib.control import DesignConfig
+    from course_lib.control.window import WindowEnergy
+
+    energy, frames = WindowEnergy.for_motion(prior, walk)
+    slid = frames.clone()
+    slid[..., 0] += 0.01  # planted toes slide 1 cm a frame: eq. (18) is well above 0
+    base = energy.terms(slid)
+    heavy = WindowEnergy.for_motion(prior, walk, weights={"contact": 3.0})[0].terms(slid)
+    assert float(base["contact"]) > 1.0 and float(heavy["contact"]) == pytest.approx(float(base["contact"]))
+    assert float(heavy["total"] - base["total"]) == pytest.approx(2 * float(base["contact"]), rel=1e-9)
+    seen = []
+
+    class Spy(WindowEnergy):
+        def __post_init__(self):
+            seen.append(dict(self.weights))
+            super().__post_init__()
+
+    monkeypatch.setattr(design, "WindowEnergy", Spy)
+    curve = np.array([[0.0, 0.0], [0.0, 2.0]])
+    cfg = DesignConfig.tiny(candidates=2, contact_weight=2.5, retry_control=None, retry_rise=None)
+    design.design_motion(curve, 1.0, start=walk, seed=0, prior=prior, config=cfg)
+    assert seen and all(w == {"contact": 2.5} for w in seen)
+    assert DesignConfig().contact_weight == 1.0
+
+
 def test_render_keyframes_draws_every_pose_in_place_and_the_floor_curve(walk):
     from course_lib import render
 

@@ -87,6 +87,7 @@ class DesignConfig:
     # windows before it (a drift into poses the prior finds unlikely shows there before the control term rises)
     contact_height: float | None = CONTACT_HEIGHT["ToeBase"]  # m: eq. (18) also holds toes below this height,
     # whatever their bits (ours; None: the bits alone, the paper's)
+    contact_weight: float = 1.0  # factor on eq. (18) in eq. (19) (1: the paper's sum)
 
     def __post_init__(self):
         if not 0 < self.hop <= self.window:
@@ -214,7 +215,7 @@ def solve_windows(prior: RnnPrior, start_m: Motion, raw0: torch.Tensor, init1: t
     out, carry, windows, done = [], None, [], 0
     while done < total:
         energy = WindowEnergy(prior, skel, prev, state, init, control(init, total - done), plane,
-                              contact_height=config.contact_height)
+                              weights={"contact": config.contact_weight}, contact_height=config.contact_height)
         raw, u, hist = solve(energy, carry, config, g)
         if _needs_retry(hist["terms"], [w["terms"]["total"] for w in windows], config):
             from dataclasses import replace
