@@ -38,6 +38,17 @@ def accuracy(feats, stats, test, mocap, spec, seed: int) -> float:
     return float(c2st(mocap, X.to_motions(feats, stats, test, spec.fps), seed=seed)["accuracy"])
 
 
+def write(out: dict, path: str) -> None:
+    """Add each row's summary over the generation seeds (mean, sd, in how many it is below the RNN's) to ``out``
+    and write it, rounded, to path."""
+    acc = {k: np.array([r[k] for r in out["by_generation_seed"].values()]) for k in out["by_generation_seed"]["0"]}
+    out["summary"] = {k: {"mean": float(v.mean()), "sd": float(v.std(ddof=1)),
+                          "below_rnn_in": int((v < acc["RNN"]).sum())} for k, v in acc.items()}
+    with open(path, "w") as f:
+        json.dump(rounded(out, 4), f, indent=1)
+        f.write("\n")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", required=True)
@@ -63,13 +74,7 @@ def main(argv=None) -> None:
                     mixed[..., cols] = sets["RNN"][..., cols]
                     out["clamp"][f"GAN2 seed {s}, {group} from the RNN"] = accuracy(mixed, stats, test, mocap, spec, 0)
             print({k: round(v, 3) for k, v in out["clamp"].items()}, flush=True)
-    rows = list(out["by_generation_seed"]["0"])
-    acc = {k: np.array([out["by_generation_seed"][str(g)][k] for g in range(args.generation_seeds)]) for k in rows}
-    out["summary"] = {k: {"mean": float(v.mean()), "sd": float(v.std(ddof=1)),
-                          "below_rnn_in": int((v < acc["RNN"]).sum())} for k, v in acc.items()}
-    with open(args.out, "w") as f:
-        json.dump(rounded(out, 4), f, indent=1)
-        f.write("\n")
+    write(out, args.out)
 
 
 if __name__ == "__main__":
