@@ -205,3 +205,15 @@ def test_generation_with_stored_limits_stays_within_them(setup):
     assert (y[..., 6:66] >= low[6:66] - 1e-4).all() and (y[..., 6:66] <= high[6:66] + 1e-4).all()
     free = X.generate(limited, x0, 20, off, ds.stats, torch.Generator().manual_seed(0), limits=False)
     assert not torch.allclose(free, out)  # an untrained RNN leaves the training range; the limits bind
+
+
+def test_column_groups_split_the_pose_columns_by_joint():
+    """The clamp tests' groups: the root's 6 columns, the 8 leg joints' 24 angle columns and the 12 upper-body joints'
+    36, disjoint, covering every column but the two contact bits."""
+    from course_lib.representations import feature_names
+
+    g = X.column_groups()
+    names = feature_names("state_features")
+    assert g["root"] == list(range(6)) and g["legs"] == list(range(6, 30)) and g["upper body"] == list(range(30, 66))
+    assert all("Leg" in names[i] or "Foot" in names[i] or "Toe" in names[i] for i in g["legs"])
+    assert sorted(g["root"] + g["legs"] + g["upper body"]) == list(range(len(names) - 2))

@@ -30,10 +30,16 @@ def case(task):
     torch.set_num_threads(1)
     c = C.curve(name)
     m = design_motion(c, C.seconds_for(c, gait), gait, seed=0, config=DesignConfig(contact_height=RULES[rule]))
+    return f"{name}/{gait} | {rule}", measured(m, c)
+
+
+def measured(m, c) -> dict:
+    """A designed motion against its curve (`experiments.control.measure_design`) and where its skate comes from
+    (`evaluation.contacts.skate_sources`, with the RNN's own contact bits)."""
     bits = np.asarray(m.meta["contacts_bits"]) > 0.5
     src = skate_sources(m.positions()[None], bits[None], m.skeleton, m.fps)
-    return f"{name}/{gait} | {rule}", {**C.measure_design(m, c), "skate_from_unflagged": src["skate_from_unflagged"],
-                                        "unflagged_low_speed": src["unflagged_low_speed"]}
+    return {**C.measure_design(m, c), "skate_from_unflagged": src["skate_from_unflagged"],
+            "unflagged_low_speed": src["unflagged_low_speed"]}
 
 
 def main(argv=None) -> None:

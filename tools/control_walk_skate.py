@@ -17,11 +17,10 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
 import torch
+from control_contact_height import measured  # tools/ is the script's directory
 
 from course_lib.control import DesignConfig, design_motion
-from course_lib.evaluation.contacts import skate_sources
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 
@@ -35,11 +34,7 @@ def case(task):
     torch.set_num_threads(1)
     c = C.curve(name)
     m = design_motion(c, C.seconds_for(c, "walk"), "walk", seed=seed, config=DesignConfig(contact_weight=weight))
-    bits = np.asarray(m.meta["contacts_bits"]) > 0.5
-    src = skate_sources(m.positions()[None], bits[None], m.skeleton, m.fps)
-    return f"{name}/walk | weight {weight:g} | seed {seed}", {
-        **C.measure_design(m, c), "skate_from_unflagged": src["skate_from_unflagged"],
-        "unflagged_low_speed": src["unflagged_low_speed"]}
+    return f"{name}/walk | weight {weight:g} | seed {seed}", measured(m, c)
 
 
 def main(argv=None) -> None:

@@ -19,22 +19,13 @@ import torch
 
 from course_lib.evaluation import c2st
 from course_lib.experiments import gmm_rnn as X
-from course_lib.representations import feature_names
 from course_lib.reproduce import rounded
 
 COMMAND = "OMP_NUM_THREADS=1 python tools/gmm_rnn_c2st.py --out tools/gmm_rnn_c2st_results.json"
-GROUPS = {"legs": ("UpLeg", "Leg_", "Foot", "ToeBase"),
-          "upper body": ("Spine", "Neck", "Head", "Shoulder", "Arm", "Hand")}
-
-
-def column_groups() -> dict:
-    """{group: state-feature columns}: the legs, the upper body and the root (the first 6 columns)."""
-    names = feature_names("state_features")
-    cols = {g: [i for i, c in enumerate(names) if any(k in c for k in keys)] for g, keys in GROUPS.items()}
-    return cols | {"root": list(range(6))}
 
 
 def accuracy(feats, stats, test, mocap, spec, seed: int) -> float:
+    """Normalised features (N, T, D) decoded on the test clips' skeletons -> their C2ST accuracy against mocap."""
     return float(c2st(mocap, X.to_motions(feats, stats, test, spec.fps), seed=seed)["accuracy"])
 
 
@@ -69,7 +60,7 @@ def main(argv=None) -> None:
         if g == 0:
             for s in spec.seeds:
                 gan2 = sets[f"GAN2 seed {s}"]
-                for group, cols in column_groups().items():
+                for group, cols in X.column_groups().items():
                     mixed = gan2.clone()
                     mixed[..., cols] = sets["RNN"][..., cols]
                     out["clamp"][f"GAN2 seed {s}, {group} from the RNN"] = accuracy(mixed, stats, test, mocap, spec, 0)

@@ -16,7 +16,7 @@ import time
 from dataclasses import replace
 
 import torch
-from gmm_rnn_c2st import accuracy, column_groups, write  # tools/ is the script's directory
+from gmm_rnn_c2st import accuracy, write  # tools/ is the script's directory
 
 from course_lib.experiments import gmm_rnn as X
 
@@ -41,7 +41,7 @@ def main(argv=None) -> None:
     rows = {"GAN2 (shipped: D sees the bits)": refiners["GAN2"], "GAN2, D without the bits": no_bits}
     T = int(round(spec.eval_seconds * spec.fps))
     mocap = [m[:T] for m in test]
-    legs = column_groups()["legs"]
+    legs = X.column_groups()["legs"]
     for g in range(5):
         sets = X.continuations(model, rows, test, stats, spec, seed=g)
         out["by_generation_seed"][str(g)] = {k: accuracy(v, stats, test, mocap, spec, g) for k, v in sets.items()}

@@ -140,6 +140,20 @@ def clip_offsets(clips: list[Motion]) -> torch.Tensor:
 # ----------------------------------------------------------------------------- training
 
 
+# the clamp tests' column groups of the state features, by joint name (root: the first 6 columns)
+COLUMN_GROUPS = {"legs": ("UpLeg", "Leg_", "Foot", "ToeBase"),
+                 "upper body": ("Spine", "Neck", "Head", "Shoulder", "Arm", "Hand")}
+
+
+def column_groups() -> dict[str, list[int]]:
+    """{"legs", "upper body", "root"} -> their state-feature columns (the clamp tests put one group back)."""
+    from course_lib.representations import feature_names
+
+    names = feature_names("state_features")
+    cols = {g: [i for i, c in enumerate(names) if any(k in c for k in keys)] for g, keys in COLUMN_GROUPS.items()}
+    return cols | {"root": list(range(6))}
+
+
 def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int | None = None,
               finetune_steps: int | None = None, progress: bool = True, config=None, device: str = "cpu"):
     """The GMM-RNN of sec. 4.1 on ds's windows -> (model, History, fine-tuning History).
