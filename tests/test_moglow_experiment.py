@@ -155,3 +155,27 @@ def test_train_model_sets_the_decayed_learning_rate(data):
     _, hist = E.train_model("moglow", data, steps=4, seed=0, decay_from=0.5)
     assert hist.lr[:3] == pytest.approx([E.LR, E.LR, E.LR * E.lr_factor(2, 4, 0.5)])
     assert hist.lr[-1] == pytest.approx(E.LR * E.LR_FLOOR)
+
+
+def test_noisy_mocap_zero_noise_is_the_mocap_and_noise_shakes(data, monkeypatch):
+    """Known answers of lesson 06's noise study: sd 0 scores the decoded mocap itself (its skate and jitter);
+    i.i.d. frame noise raises the jitter several-fold and the skate, and so does the shaped noise of the same total variance;
+    the held-out poses are not changed."""
+    from course_lib.evaluation import foot_skate, jitter
+    from course_lib.representations import root_start
+
+    import dataclasses
+
+    # CI's tiny data holds out 3 windows: score 8 training windows, decoded on a held-out clip's skeleton
+    data = dataclasses.replace(data, test={k: v[:8] for k, v in data.train.items()},
+                               test_clips=[data.test_clips[0]] * 8)
+    monkeypatch.setattr(E, "MIN_DISTRIBUTION_CLIPS", 8)
+    before = data.test["poses"].clone()
+    starts = [root_start(m) for m in data.test_clips]
+    mocap = E.to_motions(data.positions(data.test["poses"], data.test["controls"], starts), data.test_clips)
+    for shaped in (False, True):
+        rows = E.noisy_mocap(data, (0.0, 0.3), seed=0, shaped=shaped)
+        assert rows[0.0]["jitter"] == pytest.approx(jitter(mocap)) and rows[0.0]["foot_skate"] == pytest.approx(
+            foot_skate(mocap))
+        assert rows[0.3]["jitter"] > 3 * rows[0.0]["jitter"] and rows[0.3]["foot_skate"] > 2 * rows[0.0]["foot_skate"]
+    assert torch.equal(data.test["poses"], before)

@@ -413,24 +413,40 @@ def to_motions(positions: np.ndarray, clips: list) -> list:
     return [motion_from_positions(p, m.skeleton, FPS) for p, m in zip(positions, clips, strict=True)]
 
 
+def _mocap_halves(data: MoGlowData, seed: int) -> tuple:
+    """The held-out mocap decoded as `quality` decodes samples, split in two random halves (seed) -> (the action
+    classifier, the root starts, the decoded mocap, indices a, indices b)."""
+    from course_lib.evaluation import load_classifier
+    from course_lib.representations import root_start
+
+    starts = [root_start(m) for m in data.test_clips]
+    real = to_motions(data.positions(data.test["poses"], data.test["controls"], starts), data.test_clips)
+    if len(real) < MIN_DISTRIBUTION_CLIPS:
+        raise ValueError(f"quality: FID/C2ST need >= {MIN_DISTRIBUTION_CLIPS} held-out clips, got {len(real)} "
+                         "(CI's tiny data: use the recorded results)")
+    half = np.random.default_rng(seed).permutation(len(real))
+    return load_classifier("action"), starts, real, half[: len(real) // 2], half[len(real) // 2:]
+
+
+def _scores(gen: list, real_a: list, b, clf, seed: int) -> dict:
+    """One row of `quality`: gen (a Motion per held-out clip) scored against mocap half a on its half b."""
+    from course_lib.evaluation import c2st, fid, foot_skate, jitter
+
+    gen_b = [gen[i] for i in b]  # the half whose mocap is not the reference: the same protocol as mocap's row
+    test = c2st(real_a, gen_b, seed=seed)
+    return {"foot_skate": foot_skate(gen), "jitter": jitter(gen), "FID": fid(real_a, gen_b, clf),
+            "C2ST": test["accuracy"], "C2ST_low": test["ci_low"], "C2ST_high": test["ci_high"]}
+
+
 def quality(models: dict, data: MoGlowData, seed: int) -> dict:
     """Samples driven by every held-out clip's control from its first tau frames, the control integrated to
     a root path from the clip's start: foot skate (m/s), jitter (m/s^3), FID and C2ST (shared classifiers).
     FID and C2ST compare one random half of the mocap (a) with the *other* half's samples (b), so that the
     mocap row (a vs the mocap of b) is the same protocol with the same sample sizes (FID is biased upward
     at small n: a floor measured on halves is not comparable with a model scored on every clip)."""
-    from course_lib.evaluation import c2st, fid, foot_skate, jitter, load_classifier
-    from course_lib.representations import root_start
+    from course_lib.evaluation import c2st, fid, foot_skate, jitter
 
-    clf = load_classifier("action")
-    starts = [root_start(m) for m in data.test_clips]
-    real_pos = data.positions(data.test["poses"], data.test["controls"], starts)
-    real = to_motions(real_pos, data.test_clips)
-    if len(real) < MIN_DISTRIBUTION_CLIPS:
-        raise ValueError(f"quality: FID/C2ST need >= {MIN_DISTRIBUTION_CLIPS} held-out clips, got {len(real)} "
-                         "(CI's tiny data: use the recorded results)")
-    half = np.random.default_rng(seed).permutation(len(real))
-    a, b = half[: len(real) // 2], half[len(real) // 2:]
+    clf, starts, real, a, b = _mocap_halves(data, seed)
     real_a, real_b = [real[i] for i in a], [real[i] for i in b]
     native_b = [data.test_clips[i] for i in b]
     floor = c2st(real_a, real_b, seed=seed)
@@ -441,11 +457,31 @@ def quality(models: dict, data: MoGlowData, seed: int) -> dict:
     x0, c0 = data.test["poses"][:, :TAU], data.test["controls"][:, :TAU]
     for name, model in models.items():
         poses, c = generate(model, data, data.test["controls"], seed, starts=(x0, c0))
-        gen = to_motions(data.positions(poses, c, starts), data.test_clips)
-        gen_b = [gen[i] for i in b]  # the half whose mocap is not the reference: the same protocol as mocap's row
-        test = c2st(real_a, gen_b, seed=seed)
-        rows[name] = {"foot_skate": foot_skate(gen), "jitter": jitter(gen), "FID": fid(real_a, gen_b, clf),
-                      "C2ST": test["accuracy"], "C2ST_low": test["ci_low"], "C2ST_high": test["ci_high"]}
+        rows[name] = _scores(to_motions(data.positions(poses, c, starts), data.test_clips), real_a, b, clf, seed)
+    return rows
+
+
+def noisy_mocap(data: MoGlowData, sds, seed: int, shaped: bool = False) -> dict:
+    """Known answer for `quality`'s measures: the held-out mocap with Gaussian noise of sd `sd` per feature (in the
+    standardised pose units a MoGlow samples in; controls and root path untouched), independent over frames,
+    scored exactly as a model's samples are -> {sd: row}.  shaped=False: independent over features (covariance
+    sd^2 I); shaped=True: correlated like the training poses (covariance sd^2 C, C their correlation matrix: the
+    same total variance, along the directions the data vary in).  Frame-to-frame noise a person sees as shaking
+    must move jitter and skate; whether it moves FID and C2ST is what this measures."""
+    clf, starts, real, a, b = _mocap_halves(data, seed)
+    real_a = [real[i] for i in a]
+    g = torch.Generator().manual_seed(seed)
+    poses = data.test["poses"]
+    shape = torch.eye(poses.shape[-1])
+    if shaped:
+        x = data.train["poses"].reshape(-1, poses.shape[-1]).double()
+        corr = torch.corrcoef(x.T)
+        shape = torch.linalg.cholesky(corr + 1e-6 * torch.eye(len(corr))).float()
+    rows = {}
+    for sd in sds:
+        noisy = poses + sd * torch.randn(poses.shape, generator=g) @ shape.T
+        gen = to_motions(data.positions(noisy, data.test["controls"], starts), data.test_clips)
+        rows[float(sd)] = _scores(gen, real_a, b, clf, seed)
     return rows
 
 
