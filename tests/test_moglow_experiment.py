@@ -1,5 +1,7 @@
 """Lesson 06's experiment (course_lib/experiments/moglow.py): data, measures with known answers, registry."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -159,12 +161,10 @@ def test_train_model_sets_the_decayed_learning_rate(data):
 
 def test_noisy_mocap_zero_noise_is_the_mocap_and_noise_shakes(data, monkeypatch):
     """Known answers of lesson 06's noise study: sd 0 scores the decoded mocap itself (its skate and jitter);
-    i.i.d. frame noise raises the jitter several-fold and the skate, and so does the shaped noise of the same total variance;
-    the held-out poses are not changed."""
+    i.i.d. frame noise raises the jitter several-fold and the skate, and so does the shaped noise of the same
+    total variance; the held-out poses are not changed."""
     from course_lib.evaluation import foot_skate, jitter
     from course_lib.representations import root_start
-
-    import dataclasses
 
     # CI's tiny data holds out 3 windows: score 8 training windows, decoded on a held-out clip's skeleton
     data = dataclasses.replace(data, test={k: v[:8] for k, v in data.train.items()},
