@@ -2,11 +2,11 @@
 
     OMP_NUM_THREADS=1 python tools/moglow_noise_blind.py --out tools/moglow_noise_blind_results.json  # ~9 min
 
-The held-out mocap with i.i.d. Gaussian noise on the standardised pose features (the space MoGlow samples in; the
-controls and root path untouched), scored by lesson 06's protocol (`experiments.moglow.noisy_mocap`, the same halves,
-classifier and decoding as `quality`) at several noise levels and generation seeds 0-2, the noise independent over features or correlated like the
-training poses (the same total variance), beside the shipped MoGlow's
-recorded row.  Writes nothing to checkpoints/.
+The held-out mocap with Gaussian noise on the standardised pose features (the space MoGlow samples in; the controls
+and root path untouched), independent over frames, and either independent over features or correlated like the
+training poses (the same total variance).  Scored by lesson 06's protocol (`experiments.moglow.noisy_mocap`: the same
+halves, classifier and decoding as `quality`) at several noise levels, means over generation seeds 0-2, beside the
+shipped MoGlow's recorded row.  Writes nothing to checkpoints/.
 """
 
 import argparse
