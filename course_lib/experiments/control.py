@@ -406,7 +406,11 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
         raise ValueError(f"control: --only takes parts of {PARTS}, got {unknown}")
     t0 = time.perf_counter()
     sha = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]
-    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha, "workers": workers}
+    from course_lib.training import training_environment
+
+    # the host's torch cpu capability decides rounding, which the online search amplifies (tools/control_online_cpu.py)
+    out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha, "workers": workers,
+           "environment": training_environment()}
     times, by = {}, {}
     if only:
         kept = recorded_results(checkpoints)
