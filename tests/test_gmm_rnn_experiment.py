@@ -217,3 +217,28 @@ def test_column_groups_split_the_pose_columns_by_joint():
     assert g["root"] == list(range(6)) and g["legs"] == list(range(6, 30)) and g["upper body"] == list(range(30, 66))
     assert all("Leg" in names[i] or "Foot" in names[i] or "Toe" in names[i] for i in g["legs"])
     assert sorted(g["root"] + g["legs"] + g["upper body"]) == list(range(len(names) - 2))
+
+
+def test_store_limits_keeps_limits_equal_to_rounding(setup, tmp_path):
+    """A refiner-only retrain on another CPU must not rewrite the RNN for limits that differ in the last bits: the
+    first store writes them, a second finds them equal and keeps the file (same sha256), a real change rewrites."""
+    import copy
+    import json
+
+    from course_lib.training import save_checkpoint
+
+    clips, ds, model, refiners, spec = setup
+    save_checkpoint(copy.deepcopy(model), model.config, tmp_path / "gmm_rnn.pt", command="test", metrics={})
+    sha = lambda: json.loads((tmp_path / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]  # noqa: E731
+    assert X.store_limits(ds, tmp_path) is True  # +-inf before: written
+    first = sha()
+    assert X.store_limits(ds, tmp_path) is False and sha() == first  # the same limits: kept
+    stored = X.load_models_rnn(tmp_path)
+    low, high = (b.clone() for b in stored.limits())
+    stored.set_limits(low - 2e-7 * torch.isfinite(low), high)  # a last-bits difference: still kept
+    save_checkpoint(stored, stored.config, tmp_path / "gmm_rnn.pt", command="test", metrics={}, overwrite=True)
+    assert X.store_limits(ds, tmp_path) is False
+    moved = X.load_models_rnn(tmp_path)
+    moved.set_limits(low - 0.5 * torch.isfinite(low), high)  # a real change of the stored limits ...
+    save_checkpoint(moved, moved.config, tmp_path / "gmm_rnn.pt", command="test", metrics={}, overwrite=True)
+    assert X.store_limits(ds, tmp_path) is True and X.load_models_rnn(tmp_path).limits()[0].equal(low)  # ... undone

@@ -18,13 +18,14 @@ import subprocess
 import sys
 import tempfile
 
+from control_online_seeds import divergence  # tools/ is the script's directory
+
 COMMAND = "OMP_NUM_THREADS=1 python tools/control_online_cpu.py --out tools/control_online_cpu_results.json"
 GAITS = ("walk", "run")
 
 
 def child(path: str) -> None:
-    """One scripted run per gait (seed 0) -> JSON at path: the capability, held share, every batch's speed and
-    heading."""
+    """One scripted run per gait (seed 0) -> JSON at path: the capability, held share and every batch."""
     import torch
 
     from course_lib.experiments import control as C
@@ -33,8 +34,7 @@ def child(path: str) -> None:
     out = {"cpu_capability": torch.backends.cpu.get_cpu_capability()}
     for gait in GAITS:
         r = C.online_run(gait, 0)
-        out[gait] = {"held": r["speed_held"], "speed": [b["speed"] for b in r["batches"]],
-                     "heading": [b["heading"] for b in r["batches"]], "t": [b["t"] for b in r["batches"]]}
+        out[gait] = {"held": r["speed_held"], "batches": r["batches"]}
     with open(path, "w") as f:
         json.dump(out, f)
 
@@ -52,14 +52,13 @@ def run(capability: str | None) -> dict:
 
 
 def compare(a: dict, b: dict, tol: float = 1e-4) -> dict:
-    """Batch-by-batch comparison of one gait's two runs: the first batch that differs at all, the first that
-    differs by more than tol m/s, the largest speed difference in batch 0, and both held shares."""
-    pairs = list(zip(a["speed"], b["speed"], strict=True))
-    exact = next((i for i, (x, y) in enumerate(pairs) if x != y), None)
-    beyond = next((i for i, (x, y) in enumerate(pairs) if abs(x - y) > tol), None)
-    return {"first_batch_different": exact, "first_batch_beyond_tol": beyond,
-            "t_beyond_tol": None if beyond is None else a["t"][beyond],
-            "batch0_speed_difference": abs(pairs[0][0] - pairs[0][1]), "held": [a["held"], b["held"]]}
+    """Batch-by-batch comparison of one gait's two runs (control_online_seeds.divergence): the first batch that
+    differs at all, the first that differs by more than tol m/s, batch 0's speed difference, both held shares."""
+    exact, beyond = divergence(a, b, 0.0), divergence(a, b, tol)
+    return {"first_batch_different": exact["first_batch"], "first_batch_beyond_tol": beyond["first_batch"],
+            "t_beyond_tol": beyond.get("t"),
+            "batch0_speed_difference": abs(a["batches"][0]["speed"] - b["batches"][0]["speed"]),
+            "held": [a["held"], b["held"]]}
 
 
 def main(argv=None) -> None:
