@@ -6,7 +6,7 @@ import torch
 
 from course_lib.datasets import generate_locomotion_set
 from course_lib.evaluation import foot_skate
-from course_lib.models.contact_cleanup import TOE_FLOOR, enforce_contacts, plant_feet, toe_floor_height
+from course_lib.models.contact_cleanup import TOE_FLOOR, enforce_contacts, leg_columns, plant_feet, toe_floor_height
 from course_lib.models.refiner import local_positions
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 
@@ -123,3 +123,13 @@ def test_plant_feet_leaves_mocap_and_pins_both_feet_of_a_sliding_motion(clip):
         plant_feet(bad[None], clip.skeleton, [2])  # the heading is not a pose column
     with pytest.raises(ValueError, match=r"\(N, T >= 2, D\)"):
         plant_feet(bad, clip.skeleton, LEG_COLUMNS)
+
+
+def test_leg_columns_are_the_hip_knee_and_ankle_angles(clip):
+    sk = clip.skeleton  # canonical order: LeftUpLeg 1, LeftLeg 2, LeftFoot 3, RightUpLeg 5, RightLeg 6, RightFoot 7
+    assert leg_columns(sk) == [6, 7, 8, 9, 10, 11, 12, 13, 14, 18, 19, 20, 21, 22, 23, 24, 25, 26]
+    fixed = np.zeros(68, bool)
+    fixed[[10, 11, 22, 23]] = True  # the knees' off-axis components, fixed in the course's data
+    assert leg_columns(sk, fixed) == LEG_COLUMNS[3:]  # the contact handling's columns without the root's
+    with pytest.raises(ValueError, match="one bool per state feature"):
+        leg_columns(sk, np.zeros(60, bool))

@@ -635,7 +635,7 @@ def test_denoise_starts_where_it_is_told(prior, walk):
 
     noisy = add_noise(walk, seed=0, spike_rate=0.0, drop_rate=0.1)
     assert noisy.meta["noise"]["dropped"].any()  # so that the start's interpolation is tested
-    cfg = DenoiseConfig(iterations=0, initial_state_steps=0)
+    cfg = DenoiseConfig(iterations=0, initial_state_steps=0, plant=False)  # the MAP search's start, not planted
 
     def err(a, b):  # the variables' columns (not the fixed ones, which the prior holds at the data's constants)
         return float(np.abs(encode_state_features(a)[1:, prior.free] - encode_state_features(b)[1:, prior.free]).max())
@@ -736,3 +736,20 @@ def test_held_share_known_answers():
     assert X.held_share(zig, within) == 0.0
     late = [dict(r, speed_cmd=2.0) if r["t"] > 3 else r for r in log]  # a change after 3 s the walk never follows
     assert X.held_share(late, within) == pytest.approx(6 / 11)  # 1.33-3.0 s: 6 within; 4.33-5.67 s: 5 not
+
+
+def test_plant_legs_holds_low_toes_with_the_legs_and_leaves_the_root(walk):
+    from course_lib.control.denoise import plant_legs
+    from course_lib.evaluation import foot_skate
+    from course_lib.models.contact_cleanup import leg_columns
+    from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+    f = encode_state_features(walk)
+    f[:, [6, 9, 18, 21]] += np.random.default_rng(1).normal(0, 0.03, (len(f), 4))  # hips and knees shake
+    bad = decode_state_features(f, walk.skeleton, walk.fps, root_start(walk))
+    out = plant_legs(bad, leg_columns(walk.skeleton))
+    assert np.abs(out.root_positions - bad.root_positions).max() < 1e-9  # the root stays where it was
+    assert foot_skate([bad]) > 0.1 and foot_skate([out]) < 0.1 * foot_skate([bad])  # measured 0.70 -> 0.016
+    assert np.linalg.norm(out.positions() - walk.positions(), axis=-1).mean() < 0.03  # still the walk
+    with pytest.raises(ValueError, match="joint-angle columns"):
+        plant_legs(bad, [0, 6])

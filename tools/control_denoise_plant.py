@@ -54,17 +54,24 @@ def score_set(clips: list, seed: int = 0) -> dict:
     return res
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def tuning_and_scored(score_set, command: str, description: str, **rounding) -> None:
+    """A tool's main: --out; score_set(clips) on the tuning clips (held-out 4-7 of each gait) and the scored ones (0-3),
+    printed and written to --out with the command, rounded (``rounding``: rounded()'s keywords)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    results = {"command": "python tools/control_denoise_plant.py --out tools/control_denoise_plant_results.json"}
+    results = {"command": command}
     for name, first in (("tuning", 4), ("scored", 0)):
         results[name] = r = score_set(C.denoise_clips(first=first))
-        print(name, json.dumps(rounded(r)), flush=True)
+        print(name, json.dumps(rounded(r, **rounding)), flush=True)
     with open(args.out, "w") as f:
-        json.dump(rounded(results), f, indent=1)
+        json.dump(rounded(results, **rounding), f, indent=1)
+
+
+def main() -> None:
+    tuning_and_scored(score_set, "python tools/control_denoise_plant.py --out tools/control_denoise_plant_results.json",
+                      __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

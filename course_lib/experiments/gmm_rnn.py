@@ -370,9 +370,9 @@ def to_motions(features: torch.Tensor, stats, like: list[Motion], fps: float) ->
 def contact_columns(stats, skeleton) -> list[int]:
     """The state-feature columns the leg contact handling may move: the root's floor step (0, 1) and height (3),
     and the hip, knee and ankle angles that vary in the training data (not the fixed hinge components)."""
-    fixed = FixedDofs.from_stats(*stats).mask
-    legs = [j for j, name in enumerate(skeleton.names) if j > 0 and name.endswith(("UpLeg", "Leg", "Foot"))]
-    return [0, 1, 3] + [c for j in legs for c in range(3 * j + 3, 3 * j + 6) if not fixed[c]]
+    from course_lib.models.contact_cleanup import leg_columns
+
+    return [0, 1, 3] + leg_columns(skeleton, FixedDofs.from_stats(*stats).mask)
 
 
 def with_contacts(features: torch.Tensor, stats, like: list[Motion], smooth: int = 1,

@@ -31,7 +31,7 @@ import torch
 from course_lib.motion import STANCE_MAX_ABOVE, trusted_contacts
 from course_lib.skeleton import Skeleton
 
-__all__ = ["TOE_FLOOR", "enforce_contacts", "plant_feet", "toe_floor_height"]
+__all__ = ["TOE_FLOOR", "enforce_contacts", "leg_columns", "plant_feet", "toe_floor_height"]
 
 TOE_FLOOR = 0.025  # m: the synthetic skeletons' toe joint height when the foot is planted (`toe_floor_height`)
 
@@ -128,6 +128,21 @@ def _enforce_one(f: np.ndarray, toes: np.ndarray, bits: np.ndarray, toe_floor: f
         f[t, 0] = c[t - 1] * step_x - s[t - 1] * step_z
         f[t, 1] = s[t - 1] * step_x + c[t - 1] * step_z
     return f
+
+
+def leg_columns(skeleton: Skeleton, fixed=None) -> list[int]:
+    """The state-feature columns of the hip, knee and ankle angles (the joints named *UpLeg, *Leg, *Foot) that
+    `plant_feet` may move to hold a foot without moving the root; fixed: (D,) bool, the columns the training data
+    never vary (`datasets.FixedDofs`), left out (None: none left out)."""
+    legs = [j for j, name in enumerate(skeleton.names) if j > 0 and name.endswith(("UpLeg", "Leg", "Foot"))]
+    cols = [c for j in legs for c in range(3 * j + 3, 3 * j + 6)]
+    if fixed is not None:
+        fixed = np.asarray(fixed, bool)
+        if fixed.shape != (6 + 3 * (skeleton.num_joints - 1) + 2,):
+            raise ValueError(f"leg_columns: fixed must be one bool per state feature of {skeleton.num_joints} joints, "
+                             f"got shape {fixed.shape}")
+        cols = [c for c in cols if not fixed[c]]
+    return cols
 
 
 def plant_feet(features, skeleton: Skeleton, columns, offsets=None, toe_floor: float = TOE_FLOOR,

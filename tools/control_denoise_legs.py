@@ -1,0 +1,79 @@
+"""Lesson 04 side experiment (issue 16): after the MAP filter, hold the toes still with the legs alone.
+
+tools/control_denoise_plant.py held the filter's flagged toes with lesson 03's `plant_feet` on the root and the leg
+angles: the flagged toes stopped, but the root moved and the joint error rose from 1.1 to 4.2 cm, and 92 % of the skate
+left came from toes under 5 cm whose bit was off.  This tool runs the filter without its planting step
+(``DenoiseConfig(plant=False)``, the MAP estimate alone), then four post-steps on its output:
+
+- lesson 03's `plant_feet` on the root and the legs, the filter's bits (control_denoise_plant.py's setting);
+- the legs alone (`denoise.plant_legs` columns), the filter's bits only;
+- `plant_legs`: the legs alone, the bits or a toe under 5 cm (design.py's stance rule), at sigma_slide 3 mm (lesson
+  03's) and 1 mm (the shipped ``DenoiseConfig.plant_sigma_slide``, picked on the tuning clips).
+
+On the tuning clips (held-out clips 4-7 of each gait) and the scored clips (0-3, denoise_eval's): mean and max joint
+error to the clean motion, foot skate (and the clean clips'), contact agreement.
+
+    python tools/control_denoise_legs.py --out tools/control_denoise_legs_results.json   # ~3 min, one core
+
+Writes nothing to checkpoints/.
+"""
+
+import time
+
+import numpy as np
+from control_denoise_plant import planted, tuning_and_scored  # tools/ is the script's directory
+
+from course_lib.control import DenoiseConfig, denoise
+from course_lib.control.denoise import plant_legs
+from course_lib.datasets import FixedDofs, load_stats, noisy_copies
+from course_lib.evaluation import foot_skate
+from course_lib.experiments import control as C
+from course_lib.experiments.gmm_rnn import CHECKPOINTS
+from course_lib.models.contact_cleanup import leg_columns, plant_feet
+from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+COMMAND = "python tools/control_denoise_legs.py --out tools/control_denoise_legs_results.json"
+
+
+def legs_with_bits(m):
+    """plant_feet on the leg angles alone, the motion's own contact bits only (no low-toe rule)."""
+    f = encode_state_features(m)
+    g = plant_feet(f[None], m.skeleton, legs(m), offsets=m.skeleton.offsets[None])[0]
+    return decode_state_features(g, m.skeleton, m.fps, root_start(m))
+
+
+def legs(m) -> list:
+    """The leg-angle columns the training data vary (as the shipped denoise plants with)."""
+    return leg_columns(m.skeleton, FixedDofs.from_stats(*load_stats(CHECKPOINTS / "gmm_rnn_stats.npz",
+                                                                     "state_features")).mask)
+
+
+POST = {"MAP estimate alone (plant=False)": lambda m: m,
+        "plant_feet, root + legs, the bits": planted,
+        "legs alone, the bits": legs_with_bits,
+        "plant_legs, bits or toe < 5 cm, sigma_slide 3 mm": lambda m: plant_legs(m, legs(m), sigma_slide=0.003),
+        "plant_legs, bits or toe < 5 cm, sigma_slide 1 mm (shipped)": lambda m: plant_legs(m, legs(m))}
+
+
+def score_set(clips: list, seed: int = 0) -> dict:
+    noisy = noisy_copies(clips, seed + 1)
+    t0 = time.perf_counter()
+    out = [denoise(n, seed=seed, config=DenoiseConfig(plant=False)) for n in noisy]
+    res = {"seconds": {"denoise": time.perf_counter() - t0}}
+    for name, post in POST.items():
+        t0 = time.perf_counter()
+        rows = [C._denoise_scores(post(m), c) for m, c in zip(out, clips, strict=True)]
+        res["seconds"][name] = time.perf_counter() - t0
+        res[name] = {s: float(np.mean([r[s] for r in rows])) for s in rows[0]}
+    res["noisy"] = {s: float(np.mean([C._denoise_scores(n, c)[s] for n, c in zip(noisy, clips, strict=True)]))
+                    for s in ("mean_joint_error_m", "max_joint_error_m", "foot_skate_m_s", "contact_agreement")}
+    res["clean_foot_skate_m_s"] = float(foot_skate(clips))
+    return res
+
+
+def main() -> None:
+    tuning_and_scored(score_set, COMMAND, __doc__.splitlines()[0], digits=5)
+
+
+if __name__ == "__main__":
+    main()
