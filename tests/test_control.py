@@ -739,17 +739,34 @@ def test_held_share_known_answers():
 
 
 def test_plant_legs_holds_low_toes_with_the_legs_and_leaves_the_root(walk):
-    from course_lib.control.denoise import plant_legs
+    from course_lib.control.planting import plant_legs
     from course_lib.evaluation import foot_skate
     from course_lib.models.contact_cleanup import leg_columns
-    from course_lib.representations import decode_state_features, encode_state_features, root_start
 
-    f = encode_state_features(walk)
-    f[:, [6, 9, 18, 21]] += np.random.default_rng(1).normal(0, 0.03, (len(f), 4))  # hips and knees shake
-    bad = decode_state_features(f, walk.skeleton, walk.fps, root_start(walk))
+    bad = shaken_walk(walk)  # hips and knees shake: the stance toes slide
     out = plant_legs(bad, leg_columns(walk.skeleton))
     assert np.abs(out.root_positions - bad.root_positions).max() < 1e-9  # the root stays where it was
     assert foot_skate([bad]) > 0.1 and foot_skate([out]) < 0.1 * foot_skate([bad])  # measured 0.70 -> 0.016
     assert np.linalg.norm(out.positions() - walk.positions(), axis=-1).mean() < 0.03  # still the walk
     with pytest.raises(ValueError, match="joint-angle columns"):
         plant_legs(bad, [0, 6])
+
+
+def test_plant_with_prior_keeps_the_motion_when_planting_slides_it_more(prior, walk, monkeypatch):
+    from course_lib.control import planting
+    from course_lib.evaluation import foot_skate
+
+    planted = planting.plant_with_prior(walk, prior)
+    assert planted.meta["planted"] and foot_skate([planted]) <= foot_skate([walk])  # mocap: planted, no worse
+    monkeypatch.setattr(planting, "plant_legs", lambda m, *a, **k: shaken_walk(m))  # a "planting" that slides the feet
+    kept = planting.plant_with_prior(walk, prior)
+    assert kept.meta["planted"] is False and np.array_equal(kept.positions(), walk.positions())
+
+
+def shaken_walk(m):
+    """m with its hips and knees shaken (the stance toes slide)."""
+    from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+    f = encode_state_features(m)
+    f[:, [6, 9, 18, 21]] += np.random.default_rng(1).normal(0, 0.03, (len(f), 4))
+    return decode_state_features(f, m.skeleton, m.fps, root_start(m))

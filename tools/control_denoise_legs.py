@@ -6,7 +6,7 @@ left came from toes under 5 cm whose bit was off.  This tool runs the filter wit
 (``DenoiseConfig(plant=False)``, the MAP estimate alone), then four post-steps on its output:
 
 - lesson 03's `plant_feet` on the root and the legs, the filter's bits (control_denoise_plant.py's setting);
-- the legs alone (`denoise.plant_legs` columns), the filter's bits only;
+- the legs alone (`planting.plant_legs` columns), the filter's bits only;
 - `plant_legs`: the legs alone, the bits or a toe under 5 cm (design.py's stance rule), at sigma_slide 3 mm (lesson
   03's) and 1 mm (the shipped ``DenoiseConfig.plant_sigma_slide``, picked on the tuning clips).
 
@@ -24,7 +24,7 @@ import numpy as np
 from control_denoise_plant import planted, tuning_and_scored  # tools/ is the script's directory
 
 from course_lib.control import DenoiseConfig, denoise
-from course_lib.control.denoise import plant_legs
+from course_lib.control.planting import plant_legs
 from course_lib.datasets import FixedDofs, load_stats, noisy_copies
 from course_lib.evaluation import foot_skate
 from course_lib.experiments import control as C

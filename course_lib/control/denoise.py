@@ -37,7 +37,7 @@ Differs from the paper (which gives no sigmas, no start and no noise model beyon
   motion's: neither the prior nor a 3-cm contact sigma resolves the quarter millimetre a frame a planted toe moves
   (tools/control_denoise_prior.py), and lesson 03's `plant_feet` after the filter held the flagged toes only by
   moving the root (joint error 1.1 -> 4.2 cm, tools/control_denoise_plant.py).  So the estimate is followed by
-  `plant_legs`: every toe whose bit is on or that is below 5 cm (design.py's rule, the foot-skate measure's own
+  `planting.plant_legs`: every toe whose bit is on or that is below 5 cm (design.py's rule, the foot-skate measure's own
   height) is held still and on the floor by the hip, knee and ankle angles alone, the root as filtered.  On the
   tuning clips (held-out 4-7 of each gait) the skate fell from 0.122 to 0.013 m/s with lesson 03's sigma_slide of
   3 mm (just under 2x the clean 0.0068) and to 0.0039 with 1 mm, at the same joint error (1.16 -> 1.15 cm); 1 mm is
@@ -54,12 +54,13 @@ import torch
 from course_lib.control.initial_state import estimate_initial_state
 from course_lib.control.kinematics import integrate_root
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
+from course_lib.control.planting import plant_with_prior
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED, Motion
 
 __all__ = ["CONTACT_BITS", "FIRST_FRAME", "HELD_FRAMES", "DenoiseConfig",
-           "DenoiseProblem", "denoise", "denoise_problem", "plant_legs"]
+           "DenoiseProblem", "denoise", "denoise_problem"]
 
 CONTACT_BITS = ("input", "start", "rounds")
 FIRST_FRAME = ("input", "start")
@@ -86,7 +87,7 @@ class DenoiseConfig:
     contact_height: float | None = None  # m: eq. (18) also holds toes below this height, whatever their bits
     # (design.py's rule; None: the bits alone)
     plant: bool = True  # after the MAP estimate, hold every toe in contact or below plant_height still and on the
-    # floor by the leg angles alone (`plant_legs`; the root as filtered: ours); False: the MAP estimate alone
+    # floor by the leg angles alone (planting.py; the root as filtered: ours); False: the MAP estimate alone
     plant_height: float = CONTACT_HEIGHT["ToeBase"]  # m: toes below this are held too, whatever their bits
     plant_sigma_slide: float = 0.001  # m per frame, plant_feet's slide sigma (tuning clips, see "differs")
 
@@ -251,27 +252,5 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
         (z,), _ = minimise_lbfgs(total, [z], lb)
     out = problem.motion(energy.frames(z, bits), motion)
     if config.plant:
-        from course_lib.models.contact_cleanup import leg_columns
-
-        out = plant_legs(out, leg_columns(motion.skeleton, prior.fixed), config.plant_height, config.plant_sigma_slide)
+        out = plant_with_prior(out, prior, config.plant_height, config.plant_sigma_slide)
     return out
-
-
-def plant_legs(motion: Motion, columns, height: float = CONTACT_HEIGHT["ToeBase"],
-               sigma_slide: float = 0.001) -> Motion:
-    """Hold every toe that is in contact (the motion's own contact bits) or below ``height`` still and on the floor,
-    moving only the state-feature ``columns`` (the leg angles, `contact_cleanup.leg_columns`): lesson 03's
-    `contact_cleanup.plant_feet` with the root left where it is and design.py's low-toe rule for the stance."""
-    from course_lib.models.contact_cleanup import plant_feet
-    from course_lib.representations import decode_state_features, encode_state_features, root_start
-
-    if any(c < 6 for c in columns):
-        raise ValueError(f"plant_legs: columns must be joint-angle columns (>= 6; the root stays), got {list(columns)}")
-    sk = motion.skeleton
-    f = encode_state_features(motion)
-    low = motion.positions()[:, list(sk.feet[1::2]), 1] < height  # (T, 2), the toes in plant_feet's order
-    f[:, -2:] = ((f[:, -2:] > 0.5) | low).astype(f.dtype)
-    g = plant_feet(f[None], sk, columns, offsets=sk.offsets[None], sigma_slide=sigma_slide)[0]
-    out = decode_state_features(g, sk, motion.fps, root_start(motion))
-    return replace(out, action=motion.action, style=motion.style, subject=motion.subject,
-                   meta=dict(motion.meta, planted=True))

@@ -99,8 +99,11 @@ def offline_case(name: str, gait: str, method: str, seed: int = 0, scale: float 
 
     c = curve(name)
     t0 = time.perf_counter()
-    if method in ("random", "greedy"):
-        m = _run_free(c, seconds_for(c, gait), gait, seed, greedy=method == "greedy")
+    if method in ("random", "greedy"):  # the same planting as the designs' (DesignConfig.plant), for a fair skate
+        from course_lib.control.design import default_prior
+        from course_lib.control.planting import plant_with_prior
+
+        m = plant_with_prior(_run_free(c, seconds_for(c, gait), gait, seed, greedy=method == "greedy"), default_prior())
     else:
         m = design_motion(c, seconds_for(c, gait), gait, seed=seed, config=_config(method, scale))
     return m, time.perf_counter() - t0

@@ -1,0 +1,57 @@
+"""Planting the feet after a search (ours, not the paper's): hold every toe that is in contact or below a height
+still and on the floor by moving the leg angles alone, the root where the search put it.
+
+Taught in notebooks/04_map_control.ipynb (section 6, then section 4).
+
+Eq. (18) is a soft term inside the MAP energy (sigma_con 3 cm a frame); it cannot tell a toe that stands from one
+that slides half a millimetre a frame, so motions it shapes skate several times as much as mocap.  Lesson 03's
+contact handling (`contact_cleanup.plant_feet`) is the sharp version of the same two terms (adjacent frames,
+point-plane), but it also moves the root, and a root moved after the search costs the data or the curve the search
+fitted.  Here it may move only the hip, knee and ankle angles (`contact_cleanup.leg_columns`), and a toe is held when
+its contact bit is on or when it is below ``height`` (design.py's stance rule: 5 cm, the foot-skate measure's own
+height, `motion.CONTACT_HEIGHT`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from course_lib.motion import CONTACT_HEIGHT, Motion
+
+__all__ = ["plant_legs", "plant_with_prior"]
+
+
+def plant_legs(motion: Motion, columns, height: float = CONTACT_HEIGHT["ToeBase"],
+               sigma_slide: float = 0.001) -> Motion:
+    """Hold every toe that is in contact (the motion's own contact bits) or below ``height`` still and on the floor,
+    moving only the state-feature ``columns`` (the leg angles, `contact_cleanup.leg_columns`): lesson 03's
+    `contact_cleanup.plant_feet` with the root left where it is and design.py's low-toe rule for the stance."""
+    from course_lib.models.contact_cleanup import plant_feet
+    from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+    if any(c < 6 for c in columns):
+        raise ValueError(f"plant_legs: columns must be joint-angle columns (>= 6; the root stays), got {list(columns)}")
+    sk = motion.skeleton
+    f = encode_state_features(motion)
+    low = motion.positions()[:, list(sk.feet[1::2]), 1] < height  # (T, 2), the toes in plant_feet's order
+    f[:, -2:] = ((f[:, -2:] > 0.5) | low).astype(f.dtype)
+    g = plant_feet(f[None], sk, columns, offsets=sk.offsets[None], sigma_slide=sigma_slide)[0]
+    out = decode_state_features(g, sk, motion.fps, root_start(motion))
+    return replace(out, action=motion.action, style=motion.style, subject=motion.subject,
+                   meta=dict(motion.meta, planted=True))
+
+
+def plant_with_prior(motion: Motion, prior, height: float = CONTACT_HEIGHT["ToeBase"],
+                     sigma_slide: float = 0.001) -> Motion:
+    """`plant_legs` on the leg angles that the prior's training data vary (``prior.fixed``: the columns it never
+    varies, held at their constants), kept only if the planted motion's own foot skate (`evaluation.foot_skate`, at
+    ``height``) is not above the motion's: where the low toes move fast (a run's swing toe skimming the floor in a
+    sharp turn) the legs cannot hold them, and the compromise slid them more (lesson 04's running S-curve: 0.015 ->
+    0.069 m/s).  The check reads the motion alone, no reference."""
+    from course_lib.evaluation import foot_skate
+    from course_lib.models.contact_cleanup import leg_columns
+
+    planted = plant_legs(motion, leg_columns(motion.skeleton, prior.fixed), height, sigma_slide)
+    if foot_skate([planted], height=height) <= foot_skate([motion], height=height):
+        return planted
+    return replace(motion, meta=dict(motion.meta, planted=False))
