@@ -770,3 +770,19 @@ def shaken_walk(m):
     f = encode_state_features(m)
     f[:, [6, 9, 18, 21]] += np.random.default_rng(1).normal(0, 0.03, (len(f), 4))
     return decode_state_features(f, m.skeleton, m.fps, root_start(m))
+
+
+def test_heading_rates_and_the_turn_a_curve_asks_known_answers(walk):
+    from course_lib.experiments import control as X
+    from course_lib.representations import decode_state_features, encode_state_features, root_start
+
+    f = encode_state_features(walk)
+    f[1:, 2] = 0.02  # rad a frame: 0.6 rad/s = 34.4 deg/s
+    turning = decode_state_features(f, walk.skeleton, walk.fps, root_start(walk))
+    assert np.allclose(X.heading_rates([turning]), math.degrees(0.6), atol=1e-6)
+    t = np.linspace(0, 2 * np.pi, 2001)
+    circle = np.stack((2 - 2 * np.cos(t), 2 * np.sin(t)), -1)  # radius 2 m: 1.2 m/s asks 0.6 rad/s
+    assert X.curve_heading_rate(circle, 1.2) == pytest.approx(math.degrees(0.6), rel=1e-3)
+    assert X.curve_heading_rate(X.curve("line"), 2.5) == pytest.approx(0.0, abs=1e-9)
+    with pytest.raises(ValueError, match="shorter"):
+        X.curve_heading_rate(np.array([[0.0, 0.0], [0.0, 0.2]]), 2.5)

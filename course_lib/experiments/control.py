@@ -29,7 +29,7 @@ import torch
 
 from course_lib.reproduce import CHECKPOINTS, rounded
 
-__all__ = ["CURVES", "PACE", "curve", "offline_case", "measure_design", "online_run", "held_share", "parallel_map",
+__all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "offline_case", "measure_design", "online_run", "held_share", "parallel_map",
            "denoise_clips", "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
            "recorded_results"]
 
@@ -64,6 +64,38 @@ def seconds_for(c: np.ndarray, gait: str) -> float:
 
 
 # ----------------------------------------------------------------------------- offline design
+
+
+TURN_WINDOW = 9  # frames (0.3 s at 30 fps) over which a heading rate is averaged
+
+
+def heading_rates(motions, window: int = TURN_WINDOW) -> np.ndarray:
+    """|d heading / dt| of every frame of ``motions``, deg/s, averaged over ``window`` frames (eq. 3's dyaw column):
+    how fast the data's bodies turn."""
+    from course_lib.representations import encode_state_features
+
+    out = []
+    for m in motions:
+        dyaw = encode_state_features(m)[1:, 2]
+        if len(dyaw) >= window:
+            out.append(np.abs(np.convolve(dyaw, np.ones(window) / window, "valid")) * m.fps)
+    if not out:
+        raise ValueError(f"heading_rates: no motion has more than {window} frames")
+    return np.degrees(np.concatenate(out))
+
+
+def curve_heading_rate(c: np.ndarray, pace: float, fps: float = 30.0, window: int = TURN_WINDOW) -> float:
+    """The largest heading rate (deg/s, averaged over ``window`` frames as `heading_rates`) that a point moving along
+    the polyline ``c`` at ``pace`` m/s needs: the turn the curve asks of a body at that speed (a corner asks its
+    angle within one window)."""
+    seg = np.diff(c, axis=0)
+    cum = np.concatenate(([0.0], np.cumsum(np.linalg.norm(seg, axis=1))))
+    s = np.arange(0.0, cum[-1], pace / fps)
+    if len(s) < window + 2:
+        raise ValueError(f"curve_heading_rate: the curve is shorter than {window + 2} frames at {pace} m/s")
+    d = np.diff(np.stack((np.interp(s, cum, c[:, 0]), np.interp(s, cum, c[:, 1])), 1), axis=0)
+    dh = np.diff(np.unwrap(np.arctan2(d[:, 0], d[:, 1])))
+    return float(np.degrees(np.abs(np.convolve(dh, np.ones(window) / window, "valid")).max() * fps))
 
 
 def measure_design(m, c: np.ndarray) -> dict:
