@@ -29,9 +29,9 @@ import torch
 
 from course_lib.reproduce import CHECKPOINTS, rounded
 
-__all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "offline_case", "measure_design", "online_run", "held_share", "parallel_map",
-           "denoise_clips", "denoise_eval", "initial_state_eval", "eval_control", "train_control", "record_results",
-           "recorded_results"]
+__all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "offline_case", "measure_design",
+           "online_run", "held_share", "parallel_map", "denoise_clips", "denoise_eval", "initial_state_eval",
+           "eval_control", "train_control", "record_results", "recorded_results"]
 
 COMMAND = "python -m course_lib.reproduce control"
 PACE = {"walk": 1.2, "run": 2.5}  # m/s each curve is asked at (held-out walks: median 1.07; runs: 2.86)
