@@ -5,10 +5,11 @@ angles: the flagged toes stopped, but the root moved and the joint error rose fr
 left came from toes under 5 cm whose bit was off.  This tool runs the filter without its planting step
 (``DenoiseConfig(plant=False)``, the MAP estimate alone), then four post-steps on its output:
 
-- lesson 03's `plant_feet` on the root and the legs, the filter's bits (control_denoise_plant.py's setting);
-- the legs alone (`planting.plant_legs` columns), the filter's bits only;
-- `plant_legs`: the legs alone, the bits or a toe under 5 cm (design.py's stance rule), at sigma_slide 3 mm (lesson
-  03's) and 1 mm (the shipped ``DenoiseConfig.plant_sigma_slide``, picked on the tuning clips).
+- lesson 03's `plant_feet` on the root and the legs, the estimate's pose contacts (control_denoise_plant.py's setting);
+- the legs alone (`planting.plant_legs` columns), the estimate's pose contacts only (foot low and slow);
+- `plant_legs`: the legs alone, the pose contacts or a toe under 5 cm (design.py's stance rule), at sigma_slide 3 mm
+  (lesson 03's) and 1 mm (the shipped ``DenoiseConfig.plant_sigma_slide``, picked on the tuning clips, through
+  `plant_with_prior` as `denoise` does).
 
 On the tuning clips (held-out clips 4-7 of each gait) and the scored clips (0-3, denoise_eval's): mean and max joint
 error to the clean motion, foot skate (and the clean clips'), contact agreement.
@@ -24,7 +25,8 @@ import numpy as np
 from control_denoise_plant import planted, tuning_and_scored  # tools/ is the script's directory
 
 from course_lib.control import DenoiseConfig, denoise
-from course_lib.control.planting import plant_legs
+from course_lib.control.design import default_prior
+from course_lib.control.planting import plant_legs, plant_with_prior
 from course_lib.datasets import FixedDofs, load_stats, noisy_copies
 from course_lib.evaluation import foot_skate
 from course_lib.experiments import control as C
@@ -36,7 +38,7 @@ COMMAND = "python tools/control_denoise_legs.py --out tools/control_denoise_legs
 
 
 def legs_with_bits(m):
-    """plant_feet on the leg angles alone, the motion's own contact bits only (no low-toe rule)."""
+    """plant_feet on the leg angles alone, the contacts of the motion's own pose only (no low-toe rule)."""
     f = encode_state_features(m)
     g = plant_feet(f[None], m.skeleton, legs(m), offsets=m.skeleton.offsets[None])[0]
     return decode_state_features(g, m.skeleton, m.fps, root_start(m))
@@ -49,10 +51,10 @@ def legs(m) -> list:
 
 
 POST = {"MAP estimate alone (plant=False)": lambda m: m,
-        "plant_feet, root + legs, the bits": planted,
-        "legs alone, the bits": legs_with_bits,
-        "plant_legs, bits or toe < 5 cm, sigma_slide 3 mm": lambda m: plant_legs(m, legs(m), sigma_slide=0.003),
-        "plant_legs, bits or toe < 5 cm, sigma_slide 1 mm (shipped)": lambda m: plant_legs(m, legs(m))}
+        "plant_feet, root + legs, pose contacts": planted,
+        "legs alone, pose contacts": legs_with_bits,
+        "plant_legs, contacts or toe < 5 cm, sigma_slide 3 mm": lambda m: plant_legs(m, legs(m), sigma_slide=0.003),
+        "plant_legs, contacts or toe < 5 cm, 1 mm (shipped)": lambda m: plant_with_prior(m, default_prior())}
 
 
 def score_set(clips: list, seed: int = 0) -> dict:

@@ -33,7 +33,8 @@ def case(task):
     name, seed, weight = task
     torch.set_num_threads(1)
     c = C.curve(name)
-    m = design_motion(c, C.seconds_for(c, "walk"), "walk", seed=seed, config=DesignConfig(contact_weight=weight))
+    m = design_motion(c, C.seconds_for(c, "walk"), "walk", seed=seed, config=DesignConfig(contact_weight=weight,
+                                                                                                 plant=False))
     return f"{name}/walk | weight {weight:g} | seed {seed}", measured(m, c)
 
 

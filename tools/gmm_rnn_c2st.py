@@ -43,7 +43,8 @@ def summary(by_seed: dict) -> dict:
 def write(out: dict, path: str) -> None:
     """Add each row's summary over the generation seeds (C2ST and FID) to ``out`` and write it, rounded, to path."""
     out["summary"] = summary(out["by_generation_seed"])
-    out["fid_summary"] = summary(out["fid_by_generation_seed"])
+    if out.get("fid_by_generation_seed"):  # tools/gmm_rnn_c2st_bits.py records the C2ST alone
+        out["fid_summary"] = summary(out["fid_by_generation_seed"])
     with open(path, "w") as f:
         json.dump(rounded(out, 4), f, indent=1)
         f.write("\n")

@@ -33,15 +33,16 @@ Differs from the paper (which gives no sigmas, no start and no noise model beyon
   the start (``held_frames="fill"``; runs of at most dropouts.MAX_RUN frames with a good frame after them: a longer
   stillness is real).  Measured on the tuning clips: 1.48 -> 1.14 cm mean joint error.
 - The spikes (1 % of frames, 0.6 rad) are not modelled: a Gaussian data term follows them partly.
-- Planting (ours, ``plant``).  Eq. (18) as a soft term leaves the estimate's feet skating about 15x the clean
-  motion's: neither the prior nor a 3-cm contact sigma resolves the quarter millimetre a frame a planted toe moves
-  (tools/control_denoise_prior.py), and lesson 03's `plant_feet` after the filter held the flagged toes only by
-  moving the root (joint error 1.1 -> 4.2 cm, tools/control_denoise_plant.py).  So the estimate is followed by
-  `planting.plant_legs`: every toe whose bit is on or that is below 5 cm (design.py's rule, the foot-skate measure's own
-  height) is held still and on the floor by the hip, knee and ankle angles alone, the root as filtered.  On the
-  tuning clips (held-out 4-7 of each gait) the skate fell from 0.122 to 0.013 m/s with lesson 03's sigma_slide of
-  3 mm (just under 2x the clean 0.0068) and to 0.0039 with 1 mm, at the same joint error (1.16 -> 1.15 cm); 1 mm is
-  shipped (tools/control_denoise_legs.py measures both on the tuning and the scored clips).
+- Planting (ours, ``plant``).  Eq. (18) as a soft term leaves the estimate's feet skating 12x (scored clips) to 18x
+  (tuning clips) the clean motion's: neither the prior nor a 3-cm contact sigma resolves the half millimetre a frame
+  a planted toe may move (tools/control_denoise_prior.py), and lesson 03's `plant_feet` after the filter held the
+  toes in contact only by moving the root (joint error 1.2 -> 3.5 cm, tools/control_denoise_legs.py).  So the
+  estimate is followed by `planting.plant_with_prior`: every toe that the estimate's own pose has in contact or that
+  is below 5 cm (design.py's rule, the foot-skate measure's own height) is held still and on the floor by the hip,
+  knee and ankle angles alone, the root as filtered.  On the tuning clips (held-out 4-7 of each gait) the skate fell
+  from 0.122 to 0.013 m/s with lesson 03's sigma_slide of 3 mm (just under 2x the clean 0.0068) and to 0.0039 with
+  1 mm, at the same joint error (1.16 -> 1.15 cm); 1 mm is shipped (tools/control_denoise_legs.py measures both on
+  the tuning and the scored clips).
 """
 
 from __future__ import annotations

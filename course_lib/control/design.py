@@ -36,7 +36,8 @@ themselves (rollout.py says why); L-BFGS holds the Gumbel variables (the mixture
 Eq. (18)'s contact labels c_i are the RNN's contact bits or a toe below 5 cm (``contact_height``, foot_skate's own
 height; ours): with the bits alone the walking S-curve, U-turn and polyline skated 0.27 / 0.17 / 0.29 m/s, from low
 toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, tools/control_contact_height.py).
-Planting (ours, ``plant``): the designed motion's toes that are in contact or below ``contact_height`` are then held
+Planting (ours, ``plant``): the designed motion's toes that are in contact (its pose's own contacts, foot low and slow)
+or below ``contact_height`` are then held
 still by the leg angles alone (planting.py, as denoising does); the root is not moved, so the curve's distance and end
 are the search's own.  Eq. (18) inside the energy left the walks skating 0.09-0.14 m/s on the mean of three seeds
 (low swing toes that still slide); lesson 04 section 4 measures the planted designs.
@@ -94,7 +95,8 @@ class DesignConfig:
     # whatever their bits (ours; None: the bits alone, the paper's)
     contact_weight: float = 1.0  # factor on eq. (18) in eq. (19) (1: the paper's sum)
     plant: bool = True  # after the windows, hold every toe in contact or below contact_height still by the leg
-    # angles alone (planting.py; the root, and so the curve measures, as designed: ours); False: the search's motion
+    # angles alone (planting.py; the root, and so the curve measures, as designed: ours); False, or contact_height
+    # None (the paper's labels): the search's motion
     plant_sigma_slide: float = 0.001  # m per frame, as denoising's (planting.py)
 
     def __post_init__(self):
@@ -203,9 +205,8 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
     feats = torch.cat((raw0[0], frames), 0).numpy()
     motion = decode_state_features(feats, start_m.skeleton, fps, tuple(float(v) for v in init0))
     motion.meta = dict(motion.meta, design=info, curve=c, contacts_bits=feats[:, prior.contact_cols])
-    if config.plant:
-        motion = plant_with_prior(motion, prior, config.contact_height or CONTACT_HEIGHT["ToeBase"],
-                                  config.plant_sigma_slide)
+    if config.plant and config.contact_height is not None:  # planting uses the low-toe rule (planting.py)
+        motion = plant_with_prior(motion, prior, config.contact_height, config.plant_sigma_slide)
     return motion
 
 

@@ -8,13 +8,16 @@ that slides half a millimetre a frame, so motions it shapes skate several times 
 contact handling (`contact_cleanup.plant_feet`) is the sharp version of the same two terms (adjacent frames,
 point-plane), but it also moves the root, and a root moved after the search costs the data or the curve the search
 fitted.  Here it may move only the hip, knee and ankle angles (`contact_cleanup.leg_columns`), and a toe is held when
-its contact bit is on or when it is below ``height`` (design.py's stance rule: 5 cm, the foot-skate measure's own
-height, `motion.CONTACT_HEIGHT`).
+the motion's own pose has it in contact (`motion.foot_contacts`: the foot low and slow, as `encode_state_features`
+derives the contact bits) or when it is below ``height`` (design.py's stance rule: 5 cm, the foot-skate measure's own
+height, `motion.CONTACT_HEIGHT`).  The search's own contact bits (the RNN's, the noisy input's) are not used.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
+
+import numpy as np
 
 from course_lib.motion import CONTACT_HEIGHT, Motion
 
@@ -23,14 +26,20 @@ __all__ = ["plant_legs", "plant_with_prior"]
 
 def plant_legs(motion: Motion, columns, height: float = CONTACT_HEIGHT["ToeBase"],
                sigma_slide: float = 0.001) -> Motion:
-    """Hold every toe that is in contact (the motion's own contact bits) or below ``height`` still and on the floor,
-    moving only the state-feature ``columns`` (the leg angles, `contact_cleanup.leg_columns`): lesson 03's
-    `contact_cleanup.plant_feet` with the root left where it is and design.py's low-toe rule for the stance."""
+    """Hold every toe that is in contact (the contacts of the motion's own pose, `motion.foot_contacts`) or below
+    ``height`` still and on the floor, moving only the state-feature ``columns`` (the leg angles,
+    `contact_cleanup.leg_columns`): lesson 03's `contact_cleanup.plant_feet` with the root left where it is and
+    design.py's low-toe rule for the stance.  sigma_slide: m a frame a held toe may slide (plant_feet's)."""
     from course_lib.models.contact_cleanup import plant_feet
     from course_lib.representations import decode_state_features, encode_state_features, root_start
 
-    if any(c < 6 for c in columns):
-        raise ValueError(f"plant_legs: columns must be joint-angle columns (>= 6; the root stays), got {list(columns)}")
+    columns = [int(c) for c in columns]
+    if not columns or any(c < 6 for c in columns):
+        raise ValueError(f"plant_legs: columns must be joint-angle columns (>= 6; the root stays), got {columns}")
+    if not (np.isfinite(sigma_slide) and sigma_slide > 0 and np.isfinite(height) and height > 0):
+        raise ValueError(f"plant_legs: sigma_slide and height must be > 0 (m), got {sigma_slide!r}, {height!r}")
+    if len(motion) < 2:
+        raise ValueError(f"plant_legs: need a motion of at least 2 frames, got {len(motion)}")
     sk = motion.skeleton
     f = encode_state_features(motion)
     low = motion.positions()[:, list(sk.feet[1::2]), 1] < height  # (T, 2), the toes in plant_feet's order
@@ -45,9 +54,9 @@ def plant_with_prior(motion: Motion, prior, height: float = CONTACT_HEIGHT["ToeB
                      sigma_slide: float = 0.001) -> Motion:
     """`plant_legs` on the leg angles that the prior's training data vary (``prior.fixed``: the columns it never
     varies, held at their constants), kept only if the planted motion's own foot skate (`evaluation.foot_skate`, at
-    ``height``) is not above the motion's: where the low toes move fast (a run's swing toe skimming the floor in a
-    sharp turn) the legs cannot hold them, and the compromise slid them more (lesson 04's running S-curve: 0.015 ->
-    0.069 m/s).  The check reads the motion alone, no reference."""
+    ``height``) is not above the motion's: a planting that slides the toes more is not kept (seen once, by hand, on
+    lesson 04's running S-curve, where the low toes that the pose calls swinging moved faster after planting).  The
+    check reads the motion alone, no reference; motion.meta["planted"] says which was kept."""
     from course_lib.evaluation import foot_skate
     from course_lib.models.contact_cleanup import leg_columns
 

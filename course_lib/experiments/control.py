@@ -88,6 +88,8 @@ def curve_heading_rate(c: np.ndarray, pace: float, fps: float = 30.0, window: in
     """The largest heading rate (deg/s, averaged over ``window`` frames as `heading_rates`) that a point moving along
     the polyline ``c`` at ``pace`` m/s needs: the turn the curve asks of a body at that speed (a corner asks its
     angle within one window)."""
+    if not (np.isfinite(pace) and pace > 0 and np.isfinite(fps) and fps > 0):
+        raise ValueError(f"curve_heading_rate: pace and fps must be > 0, got {pace!r}, {fps!r}")
     seg = np.diff(c, axis=0)
     cum = np.concatenate(([0.0], np.cumsum(np.linalg.norm(seg, axis=1))))
     s = np.arange(0.0, cum[-1], pace / fps)
