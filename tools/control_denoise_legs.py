@@ -27,32 +27,22 @@ from control_denoise_plant import planted, tuning_and_scored  # tools/ is the sc
 from course_lib.control import DenoiseConfig, denoise
 from course_lib.control.design import default_prior
 from course_lib.control.planting import plant_legs, plant_with_prior
-from course_lib.datasets import FixedDofs, load_stats, noisy_copies
+from course_lib.datasets import noisy_copies
 from course_lib.evaluation import foot_skate
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import CHECKPOINTS
-from course_lib.models.contact_cleanup import leg_columns, plant_feet
-from course_lib.representations import decode_state_features, encode_state_features, root_start
+from course_lib.models.contact_cleanup import leg_columns
 
 COMMAND = "python tools/control_denoise_legs.py --out tools/control_denoise_legs_results.json"
 
 
-def legs_with_bits(m):
-    """plant_feet on the leg angles alone, the contacts of the motion's own pose only (no low-toe rule)."""
-    f = encode_state_features(m)
-    g = plant_feet(f[None], m.skeleton, legs(m), offsets=m.skeleton.offsets[None])[0]
-    return decode_state_features(g, m.skeleton, m.fps, root_start(m))
-
-
 def legs(m) -> list:
-    """The leg-angle columns the training data vary (as the shipped denoise plants with)."""
-    return leg_columns(m.skeleton, FixedDofs.from_stats(*load_stats(CHECKPOINTS / "gmm_rnn_stats.npz",
-                                                                     "state_features")).mask)
+    """The leg-angle columns the shipped RNN's training data vary (as the shipped denoise plants with)."""
+    return leg_columns(m.skeleton, default_prior().fixed)
 
 
 POST = {"MAP estimate alone (plant=False)": lambda m: m,
         "plant_feet, root + legs, pose contacts": planted,
-        "legs alone, pose contacts": legs_with_bits,
+        "legs alone, pose contacts": lambda m: planted(m, legs(m)),
         "plant_legs, contacts or toe < 5 cm, sigma_slide 3 mm": lambda m: plant_legs(m, legs(m), sigma_slide=0.003),
         "plant_legs, contacts or toe < 5 cm, 1 mm (shipped)": lambda m: plant_with_prior(m, default_prior())}
 

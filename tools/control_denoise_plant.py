@@ -30,11 +30,13 @@ from course_lib.models.contact_cleanup import plant_feet
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 
-def planted(m):
-    """A denoised Motion -> the same with its flagged toes held still and on the floor (plant_feet)."""
+def planted(m, columns=None):
+    """A denoised Motion -> the same with its flagged toes held still and on the floor (plant_feet) by moving
+    ``columns`` (None: lesson 03's, the root and the legs, `gmm_rnn.contact_columns`)."""
     f = encode_state_features(m)
-    cols = contact_columns(load_stats(CHECKPOINTS / "gmm_rnn_stats.npz", "state_features"), m.skeleton)
-    g = plant_feet(f[None], m.skeleton, cols, offsets=m.skeleton.offsets[None])[0]
+    if columns is None:
+        columns = contact_columns(load_stats(CHECKPOINTS / "gmm_rnn_stats.npz", "state_features"), m.skeleton)
+    g = plant_feet(f[None], m.skeleton, columns, offsets=m.skeleton.offsets[None])[0]
     return decode_state_features(g, m.skeleton, m.fps, root_start(m))
 
 
