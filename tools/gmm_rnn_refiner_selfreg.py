@@ -54,6 +54,9 @@ def main() -> None:
     parser.add_argument("--pose-lam", type=float, nargs="+", default=[0.0, 1.0, 10.0])
     parser.add_argument("--d-joints", nargs="+", default=["end_effectors"], choices=["end_effectors", "all"],
                         help="what D sees (RefinerConfig.discriminator_joints); every pose_lam runs with each")
+    parser.add_argument("--leg-pose-lam", type=float, default=0.0,
+                        help="extra self-regularisation weight on the leg angles (RefinerConfig.leg_pose_lam)")
+    parser.add_argument("--gans", nargs="+", default=["GAN1", "GAN2"], choices=["GAN1", "GAN2"])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0], help="refiner seeds (a run per seed)")
     parser.add_argument("--out", required=True)
     parser.add_argument("--save-dir", type=Path, help="also save each run's refiners here (state dicts)")
@@ -67,30 +70,36 @@ def main() -> None:
     cont = X.continuations(model, {"GAN1 shipped": shipped["GAN1"]}, test, stats, spec, 0)
     out = {"command": "python tools/gmm_rnn_refiner_selfreg.py --pose-lam " + " ".join(map(str, args.pose_lam))
            + " --d-joints " + " ".join(args.d_joints) + " --seeds " + " ".join(map(str, args.seeds))
+           + (f" --leg-pose-lam {args.leg_pose_lam}" if args.leg_pose_lam else "")
+           + (" --gans " + " ".join(args.gans) if args.gans != ["GAN1", "GAN2"] else "")
            + f" --out {args.out}",
            "RNN": score(cont["RNN"], stats, test, spec.fps),
            "RNN + contacts": score(X.with_contacts(cont["RNN"], stats, test, spec.contact_smooth), stats, test,
                                    spec.fps),
-           "shipped GAN1 (pose_lam 0)": {"all": score(cont["GAN1 shipped"], stats, test, spec.fps),
+           "shipped GAN1": {"all": score(cont["GAN1 shipped"], stats, test, spec.fps),
                                         **clamp_test(cont["RNN"], cont["GAN1 shipped"], stats, test, spec.fps)},
            "runs": {}}
     if Path(args.out).exists():  # runs are merged into an earlier file
         out["runs"] = json.loads(Path(args.out).read_text()).get("runs", {})
     for lam, joints, seed in [(v, j, k) for v in args.pose_lam for j in args.d_joints for k in args.seeds]:
-        s = dataclasses.replace(spec, refiner_pose_lam=lam, discriminator_joints=joints)
+        s = dataclasses.replace(spec, refiner_pose_lam=lam, discriminator_joints=joints,
+                                refiner_leg_pose_lam=args.leg_pose_lam)
         t0, refiners, run = time.perf_counter(), {}, {}
-        for name, contacts in (("GAN1", False), ("GAN2", True)):
+        for name, contacts in [(n, n == "GAN2") for n in args.gans]:
             r, _, hist = X.train_gan(pool, ds, s, contacts=contacts, seed=seed, progress=False)
             refiners[name], run[f"{name} training"] = r, X._gan_summary(hist)
             if args.save_dir:
                 args.save_dir.mkdir(parents=True, exist_ok=True)
-                torch.save(r.state_dict(), args.save_dir / f"{name}_pose{lam}_{joints}_seed{seed}.pt")
+                stem = f"{name}_pose{lam}_{joints}_legs{args.leg_pose_lam}_seed{seed}"
+                torch.save(r.state_dict(), args.save_dir / f"{stem}.pt")
         run["quality"] = X.quality_table(model, refiners, test, stats, s, 0)
         run["contact_handling"] = s.contact_method
-        cont = X.continuations(model, {"GAN1": refiners["GAN1"]}, test, stats, s, 0)
-        run["GAN1 clamp test"] = clamp_test(cont["RNN"], cont["GAN1"], stats, test, spec.fps)
+        cont = X.continuations(model, refiners, test, stats, s, 0)
+        for name in refiners:
+            run[f"{name} clamp test"] = clamp_test(cont["RNN"], cont[name], stats, test, spec.fps)
         run["seconds"] = time.perf_counter() - t0
-        out["runs"][f"pose_lam {lam}, D sees {joints}" + (f", seed {seed}" if args.seeds != [0] else "")] = run
+        out["runs"][f"pose_lam {lam}, D sees {joints}" + (f", legs {args.leg_pose_lam}" if args.leg_pose_lam else "")
+                    + (f", seed {seed}" if args.seeds != [0] else "")] = run
         brief = {k: {m: round(v[m], 3) for m in ("fid", "foot_skate", "jitter")} for k, v in run["quality"].items()}
         print(lam, joints, seed, brief, flush=True)
         with open(args.out, "w") as f:

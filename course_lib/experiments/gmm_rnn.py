@@ -85,6 +85,7 @@ class Lesson03Spec:
     d_loss_high: float = 0.6
     schedule_smooth: int = 5
     refiner_pose_lam: float = 10.0  # R's pose self-regularisation (SimGAN, not eq. 13): gmm_rnn_refiner_selfreg.py
+    refiner_leg_pose_lam: float = 30.0  # ... again on the leg angles (RefinerConfig; gmm_rnn_refiner_selfreg.py)
     discriminator_joints: str = "end_effectors"  # D sees eq. 12's end effectors, or "all" joints (RefinerConfig)
     discriminator_contacts: bool = True  # GAN2's D also sees the contact bits (sec. 4.3 "augment ... input and output")
     pool_sequences: int = 320  # RNN motions generated once for refiner training
@@ -339,7 +340,7 @@ def train_gan(pool: RnnPool, ds: WindowDataset, spec: Lesson03Spec, contacts: bo
     from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
 
     config = RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts and spec.discriminator_contacts,
-                               fps=spec.fps, pose_lam=spec.refiner_pose_lam,
+                               fps=spec.fps, pose_lam=spec.refiner_pose_lam, leg_pose_lam=spec.refiner_leg_pose_lam,
                                discriminator_joints=spec.discriminator_joints)
     torch.manual_seed(seed)
     refiner, disc = Refiner(config, stats=ds.stats), Discriminator(config)

@@ -51,6 +51,10 @@ Differs from the paper:
   squared change (R(x) - x)^2 of every refined column but the contact bits, in sd units.  Eq. 13 keeps only the
   root near x; with D seeing five end effectors, R then changed the spine, shoulders and arms by 1.65 sd rms,
   which alone raised the FID from 254 to 2060 (tools/gmm_rnn_refiner_selfreg.py, the clamp test).
+- ``leg_pose_lam`` > 0 (not in eq. 13): the pose self-regularisation once more on the hip, knee and ankle angles
+  alone (``contact_cleanup.leg_columns``), leg_pose_lam times their mean squared change.  With pose_lam alone, R's
+  leg change raised GAN1's FID above the RNN's (lesson 03's clamp test: the RNN's legs put back lowered it in
+  every refiner seed) and doubled its foot skate (tools/gmm_rnn_refiner_selfreg.py --leg-pose-lam).
 - ``discriminator_joints="all"`` (not in eq. 12): D sees the floor-frame positions and velocities of every joint,
   not only the end effectors (R's input is unchanged).
 - ``discriminator_contacts=True`` (not in eq. 12, off in the paper's config, on for our GAN2): D also sees
@@ -69,6 +73,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from course_lib.models.contact_cleanup import leg_columns
 from course_lib.representations import local_positions
 from course_lib.skeleton import Skeleton
 
@@ -94,6 +99,7 @@ class RefinerConfig:
     contact_dims: tuple[int, ...] = (66, 67)  # columns of the contact bits
     lam: float = 20.0  # lambda of the root self-regularisation, eq. (13)
     pose_lam: float = 0.0  # weight of the pose self-regularisation (SimGAN's; not in eq. 13, see "differs")
+    leg_pose_lam: float = 0.0  # extra weight of that term on the hip, knee and ankle angles alone (see "differs")
     fps: float = 30.0  # frame rate of the features (for v_end in m/s)
     lr_refiner: float = 0.002  # RMSProp (sec. 4.2.2)
     lr_discriminator: float = 0.005  # RMSProp (sec. 4.2.2)
@@ -123,8 +129,9 @@ class RefinerConfig:
             raise ValueError(f"RefinerConfig: contact_dims {self.contact_dims} outside 0..{self.dim - 1}")
         if not 0 < self.d_loss_low < self.d_loss_high:
             raise ValueError(f"RefinerConfig: need 0 < d_loss_low < d_loss_high, got {self}")
-        if not (math.isfinite(self.pose_lam) and self.pose_lam >= 0):
-            raise ValueError(f"RefinerConfig: pose_lam must be finite and >= 0, got {self.pose_lam}")
+        for name in ("pose_lam", "leg_pose_lam"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"RefinerConfig: {name} must be finite and >= 0, got {getattr(self, name)}")
         if self.discriminator_joints not in ("end_effectors", "all"):
             raise ValueError(f"RefinerConfig: discriminator_joints must be 'end_effectors' or 'all', got "
                              f"{self.discriminator_joints!r}")
@@ -494,6 +501,10 @@ def _refiner_step(refiner, discriminator, opt_r, batch, lam: float, adversarial:
     terms["pose"] = pose.detach()
     if refiner.config.pose_lam > 0:
         terms["loss"] = terms["loss"] + refiner.config.pose_lam * pose
+    if refiner.config.leg_pose_lam > 0:
+        legs = pose_regularisation(x, refined, leg_columns(refiner.skeleton))
+        terms["legs"] = legs.detach()
+        terms["loss"] = terms["loss"] + refiner.config.leg_pose_lam * legs
     if not torch.isfinite(terms["loss"]):
         raise FloatingPointError(f"refiner loss is {float(terms['loss'])}")
     opt_r.zero_grad(set_to_none=True)
