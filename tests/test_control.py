@@ -307,6 +307,28 @@ def test_online_controller_holds_the_commanded_speed(prior, walk):
         c.step(-1.0, 0.0)
 
 
+def test_online_speed_retry_runs_a_second_search_only_after_a_speed_change(prior, walk, monkeypatch):
+    """speed_retry: a batch that misses the commanded speed gets a second L-BFGS pass, but only within
+    speed_retry_batches batches of a change of the command; with speed_retry 0 never."""
+    from course_lib.control import OnlineConfig, OnlineController
+    from course_lib.control import online as O
+
+    calls = []
+    real = O.minimise_lbfgs
+    monkeypatch.setattr(O, "minimise_lbfgs", lambda *a, **k: calls.append(1) or real(*a, **k))
+    passes = {}
+    for retry in (0.0, 0.1):
+        c = OnlineController(start=walk, prior=prior, config=OnlineConfig(speed_retry=retry, speed_retry_batches=2))
+        per_step = []
+        for _ in range(4):  # one command, never changed: a walk asked for 4 m/s misses it in every batch
+            calls.clear()
+            c.step(4.0, c.heading)
+            per_step.append(len(calls))
+        passes[retry] = per_step
+    assert passes[0.0] == [1, 1, 1, 1]
+    assert passes[0.1] == [2, 2, 1, 1]  # the first two batches after the command (it is new at the first step)
+
+
 def test_denoise_lowers_the_joint_error_of_a_noised_unseen_walk(prior, walk):
     from course_lib.control import denoise
     from course_lib.synthetic import add_noise
