@@ -11,6 +11,9 @@ table on the 120 held-out clips and the 100 x 20-s long generation) and records 
 
     python tools/gmm_rnn_refiner_recipes.py --d-joints all --pose-lam 30 --out <file>            # ~12 min, one core
     python tools/gmm_rnn_refiner_recipes.py --d-joints end_effectors --pose-lam 10 --out <file>  # ~12 min
+
+Recorded before the leg term (``Lesson03Spec.refiner_leg_pose_lam`` was 0); the spec's default is now 30, so a
+rerun trains the current recipe, not the recorded one.
 """
 
 import argparse

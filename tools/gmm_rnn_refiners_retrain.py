@@ -13,6 +13,9 @@ the two runs on one machine compare the bits; GAN1, the same code in both, compa
     # ~45 min each on one core: six refiners and the evaluation
 
 Writes nothing to checkpoints/.
+
+Recorded before the leg term (``Lesson03Spec.refiner_leg_pose_lam`` was 0); the spec's default is now 30, so a
+rerun trains the current recipe, not the recorded one.
 """
 
 import argparse
