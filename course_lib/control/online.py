@@ -62,11 +62,13 @@ class OnlineConfig:
     sample_bias: float = 1.0  # Graves' bias of the samples
     speed_retry: float = 0.1  # > 0: a batch whose net speed misses the command by more than this fraction (at least
     # 0.05 m/s) gets a second L-BFGS pass of lbfgs_iterations (ours; 0: never; tools/control_online_retry.py) ...
-    speed_retry_batches: int = 3  # ... within this many batches of a change of the speed command (0: any batch)
+    speed_retry_batches: int = 3  # ... within this many batches of a change of the speed command (0: any batch) ...
+    speed_retry_iterations: int = 5  # ... of this many L-BFGS evaluations (3 left 2 of 36 changes over 1 s)
 
     def __post_init__(self):
-        if self.batch < 2 or self.candidates < 1 or self.lbfgs_iterations < 0:
-            raise ValueError(f"OnlineConfig: need batch >= 2, candidates >= 1, lbfgs_iterations >= 0, got {self}")
+        if self.batch < 2 or self.candidates < 1 or self.lbfgs_iterations < 0 or self.speed_retry_iterations < 1:
+            raise ValueError(f"OnlineConfig: need batch >= 2, candidates >= 1, lbfgs_iterations >= 0, "
+                             f"speed_retry_iterations >= 1, got {self}")
 
 
 def speed_energy(root_xz: torch.Tensor, prev_xz: torch.Tensor, speed: float, fps: float, sigma: float,
@@ -155,7 +157,8 @@ class OnlineController:
             xs, _ = minimise_lbfgs(total, [eps, d], LbfgsConfig(iterations=n, evaluations=n))
             if retry and abs(self._net_speed(energy, best["raw"]) - speed) > max(cfg.speed_retry * speed,
                                                                                             0.05):
-                minimise_lbfgs(total, xs, LbfgsConfig(iterations=n, evaluations=n))
+                m = cfg.speed_retry_iterations
+                minimise_lbfgs(total, xs, LbfgsConfig(iterations=m, evaluations=m))
         else:
             with torch.no_grad():
                 total(eps, d)
