@@ -285,3 +285,29 @@ def test_balance_rule_keeps_r_at_chance_and_reacts_on_both_sides():
     for _ in range(10):
         assert s.record(math.log(2)) == 5
     assert s.record(0.005) == 10 and s.record(1.5) == 5
+
+
+def test_leg_pose_lam_adds_the_leg_angles_mean_squared_change_to_the_loss():
+    """RefinerConfig.leg_pose_lam: the loss gains leg_pose_lam times the mean squared change (sd units) of the hip,
+    knee and ankle angle columns (contact_cleanup.leg_columns) alone; the other columns do not enter that term."""
+    from course_lib.models import refiner as M
+    from course_lib.models.contact_cleanup import leg_columns
+
+    cfg = M.RefinerConfig.cpu(leg_pose_lam=30.0, residual_init_scale=1.0)
+    torch.manual_seed(0)
+    R, D = M.Refiner(cfg), M.Discriminator(cfg)
+    x = 0.1 * torch.randn(2, 8, cfg.dim)
+    legs = leg_columns(R.skeleton)
+    with torch.no_grad():
+        change = R(x) - x
+    expect = float(change[..., legs].pow(2).mean())
+    assert expect > 0 and len(legs) == 18
+    lr0 = torch.optim.SGD(R.parameters(), lr=0.0)  # lr 0: the step reports the terms without moving R
+    with_legs = M._refiner_step(R, D, lr0, (x, None), lam=20.0, adversarial=False)
+    assert with_legs["legs"] == pytest.approx(expect, rel=1e-5)
+    R.config = M.RefinerConfig.cpu(residual_init_scale=1.0)  # leg_pose_lam 0: no leg term
+    without = M._refiner_step(R, D, lr0, (x, None), lam=20.0, adversarial=False)
+    assert "legs" not in without
+    assert with_legs["loss"] - without["loss"] == pytest.approx(30.0 * expect, rel=1e-4)
+    with pytest.raises(ValueError, match="leg_pose_lam"):
+        M.RefinerConfig(leg_pose_lam=-1.0)
