@@ -327,6 +327,13 @@ def test_online_speed_retry_runs_a_second_search_only_after_a_speed_change(prior
         passes[retry] = per_step
     assert passes[0.0] == [1, 1, 1, 1]
     assert passes[0.1] == [2, 2, 1, 1]  # the first two batches after the command (it is new at the first step)
+    c = OnlineController(start=walk, prior=prior, config=OnlineConfig(speed_retry=0.1, speed_retry_batches=1))
+    per_step = []
+    for target in (4.0, 4.1, 4.0, 3.0):  # drifts within 10 % of 4.0 are not changes; 3.0 is
+        calls.clear()
+        c.step(target, c.heading)
+        per_step.append(len(calls))
+    assert per_step == [2, 1, 1, 2]
 
 
 def test_denoise_lowers_the_joint_error_of_a_noised_unseen_walk(prior, walk):
