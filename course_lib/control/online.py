@@ -112,11 +112,7 @@ class OnlineController:
         self.state = self.prior.start_state(raw0, self.skeleton)
         self.frames = [raw0[0]]  # raw features so far, from the two start frames
         self.init0 = init0
-        # the speed command at its last change, batches since then; at first, the start motion's own net speed over its
-        # first frames (up to a batch), so a first command near what the character already does is not a change
-        xz = start_m.root_positions[:self.config.batch + 1, [0, 2]]
-        self._speed_cmd = float(np.linalg.norm(xz[-1] - xz[0])) * self.fps / max(len(xz) - 1, 1)
-        self._since_change = self.config.speed_retry_batches
+        self._speed_cmd, self._since_change = None, 0  # the speed command at its last change, batches since then
 
     @property
     def heading(self) -> float:
@@ -135,7 +131,7 @@ class OnlineController:
         # a change: the command moved by more than the retry's tolerance from the one at the last change (a joystick's
         # small drift is not one: with every differing command a change, the benchmark's per-batch commands made the
         # retry run on most batches, 49 against 59 frames/s)
-        if abs(speed - self._speed_cmd) > max(cfg.speed_retry * self._speed_cmd, 0.05):
+        if self._speed_cmd is None or abs(speed - self._speed_cmd) > max(cfg.speed_retry * self._speed_cmd, 0.05):
             self._speed_cmd, self._since_change = speed, 0
         else:
             self._since_change += 1
