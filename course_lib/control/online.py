@@ -62,7 +62,7 @@ class OnlineConfig:
     max_turn: float = math.radians(60)  # the most the asked direction differs from the heading, per batch
     sample_bias: float = 1.0  # Graves' bias of the samples
     speed_retry: float = 0.1  # > 0: a batch whose net speed misses the command by more than this fraction (at least
-    # 0.05 m/s) gets a second L-BFGS pass of lbfgs_iterations (ours; 0: never; tools/control_online_retry.py) ...
+    # 0.05 m/s) gets a second L-BFGS pass (ours; 0: never; tools/control_online_retry.py) ...
     speed_retry_batches: int = 3  # ... within this many batches of a change of the speed command by more than that
     # fraction (0: any batch) ...
     speed_retry_iterations: int = 5  # ... of this many L-BFGS evaluations (3 left 2 of 36 changes over 1 s)
@@ -88,6 +88,11 @@ def speed_energy(root_xz: torch.Tensor, prev_xz: torch.Tensor, speed: float, fps
 def direction_energy(yaw: torch.Tensor, direction: float, sigma: float):
     """Eq. (23): yaw (N, T) -> (N,), 2 (1 - cos(yaw_T - direction)) / sigma^2."""
     return 2 * (1 - torch.cos(yaw[:, -1] - direction)) / sigma ** 2
+
+
+def _misses(value: float, target: float, fraction: float) -> bool:
+    """|value - target| over ``fraction`` of the target, and over 0.05 m/s: the speed retry's tolerance."""
+    return abs(value - target) > max(fraction * target, 0.05)
 
 
 class OnlineController:
@@ -129,9 +134,8 @@ class OnlineController:
             raise ValueError(f"step: need a finite speed >= 0 and a finite direction, got {speed!r}, {direction!r}")
         cfg, prior = self.config, self.prior
         # a change: the command moved by more than the retry's tolerance from the one at the last change (a joystick's
-        # small drift is not one: with every differing command a change, the benchmark's per-batch commands made the
-        # retry run on most batches, 49 against 59 frames/s)
-        if self._speed_cmd is None or abs(speed - self._speed_cmd) > max(cfg.speed_retry * self._speed_cmd, 0.05):
+        # small drift is not one)
+        if self._speed_cmd is None or _misses(speed, self._speed_cmd, cfg.speed_retry):
             self._speed_cmd, self._since_change = speed, 0
         else:
             self._since_change += 1
@@ -162,8 +166,7 @@ class OnlineController:
         if cfg.lbfgs_iterations:
             n = cfg.lbfgs_iterations
             xs, _ = minimise_lbfgs(total, [eps, d], LbfgsConfig(iterations=n, evaluations=n))
-            if retry and abs(self._net_speed(energy, best["raw"]) - speed) > max(cfg.speed_retry * speed,
-                                                                                            0.05):
+            if retry and _misses(self._net_speed(energy, best["raw"]), speed, cfg.speed_retry):
                 m = cfg.speed_retry_iterations
                 minimise_lbfgs(total, xs, LbfgsConfig(iterations=m, evaluations=m))
         else:

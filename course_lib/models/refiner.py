@@ -54,7 +54,8 @@ Differs from the paper:
 - ``leg_pose_lam`` > 0 (not in eq. 13): the pose self-regularisation once more on the hip, knee and ankle angles
   alone (``contact_cleanup.leg_columns``), leg_pose_lam times their mean squared change.  With pose_lam alone, R's
   leg change raised GAN1's FID above the RNN's (lesson 03's clamp test: the RNN's legs put back lowered it in
-  every refiner seed) and doubled its foot skate (tools/gmm_rnn_refiner_selfreg.py --leg-pose-lam).
+  every refiner seed); at leg_pose_lam 30 the order RNN > GAN1 > GAN2 holds on the mean of 3 seeds
+  (tools/gmm_rnn_refiner_selfreg.py --leg-pose-lam, tools/gmm_rnn_refiner_legs_results.json).
 - ``discriminator_joints="all"`` (not in eq. 12): D sees the floor-frame positions and velocities of every joint,
   not only the end effectors (R's input is unchanged).
 - ``discriminator_contacts=True`` (not in eq. 12, off in the paper's config, on for our GAN2): D also sees
