@@ -682,6 +682,44 @@ def test_denoise_starts_where_it_is_told(prior, walk):
         denoise(noisy, prior=prior, config=cfg, start=walk[:10])
 
 
+def test_spikes_found_exactly_interpolated_and_left_out_of_eq25(prior, walk):
+    """A clean walk has no spike; a 0.8-rad kick on one joint of one frame is flagged there and nowhere else,
+    despike puts it back between its neighbours, and denoise's eq. (25) leaves exactly that joint's columns out."""
+    from dataclasses import replace
+
+    from course_lib.control import DenoiseConfig
+    from course_lib.control.denoise import angle_cols, denoise_problem
+    from course_lib.control.spikes import despike, median_deviation, spike_mask
+    from course_lib.rotations import axis_angle_to_quat, quat_mul
+
+    assert not spike_mask(walk).any() and median_deviation(walk).max() < 0.2
+    f, j = 20, 5
+    rot = walk.rotations.copy()
+    kick = axis_angle_to_quat(torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64), 0.8)
+    rot[f, j] = quat_mul(torch.from_numpy(rot[f, j]), kick).numpy()
+    spiked = replace(walk, rotations=rot)
+    mask = spike_mask(spiked)
+    assert mask.sum() == 1 and mask[f, j]
+    fixed = despike(spiked, mask)
+    angle = 2 * np.arccos(min(1.0, abs(float((fixed.rotations[f, j] * walk.rotations[f, j]).sum()))))
+    assert angle < 0.05  # back between its neighbours (the kick was 0.8)
+    assert (fixed.rotations[~mask] == spiked.rotations[~mask]).all()  # nothing else touched
+    cfg = DenoiseConfig(initial_state_steps=0)
+    P = denoise_problem(spiked, prior, cfg)
+    w = P.angle_weight[0]  # (T-1, A)
+    cols = angle_cols(prior.dim)
+    out = [cols[a] for a in np.nonzero(w[f - 1].numpy() == 0)[0]]
+    assert out == [6 + 3 * (j - 1) + k for k in range(3)] and float(w.sum()) == w.numel() - 3
+    assert denoise_problem(spiked, prior, replace(cfg, spike_angle=None)).angle_weight is None  # eq. (25) as printed
+    assert denoise_problem(walk, prior, cfg).angle_weight is None  # nothing flagged, nothing changed
+    with pytest.raises(ValueError, match="threshold"):
+        spike_mask(walk, threshold=0.0)
+    with pytest.raises(ValueError, match="odd"):
+        spike_mask(walk, window=4)
+    with pytest.raises(ValueError, match="mask"):
+        despike(walk, mask[:5])
+
+
 def test_equal_time_reuses_the_offline_rows_of_the_same_run(monkeypatch):
     """Given offline_eval's rows, equal_time_eval runs only the two scaled baselines per case, with budgets
     scaled by ours' time over theirs at the default budget; without them it measures those first."""
