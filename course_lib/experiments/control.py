@@ -319,13 +319,19 @@ def _settle(log: list, key: str, ok) -> list:
 # ----------------------------------------------------------------------------- denoising
 
 
-def _denoise_scores(out, clean) -> dict:
+def _denoise_scores(out, clean, noisy=None) -> dict:
+    """Joint error (mean, max), skate, contact agreement of ``out`` against ``clean``; with ``noisy`` (a noisy_copies
+    clip) also the largest joint error on its spiked frames (nan without one): whether the spikes are gone."""
     from course_lib.evaluation import foot_skate
 
     err = np.linalg.norm(out.positions() - clean.positions(), axis=-1)  # (T, J)
-    return {"mean_joint_error_m": float(err.mean()), "max_joint_error_m": float(err.max()),
-            "foot_skate_m_s": float(foot_skate([out])),
-            "contact_agreement": float((out.contacts() == clean.contacts()).mean())}
+    scores = {"mean_joint_error_m": float(err.mean()), "max_joint_error_m": float(err.max()),
+              "foot_skate_m_s": float(foot_skate([out])),
+              "contact_agreement": float((out.contacts() == clean.contacts()).mean())}
+    if noisy is not None:
+        spiked = noisy.meta["noise"]["spike_frames"]
+        scores["max_error_on_spiked_frames_m"] = float(err[spiked].max()) if len(spiked) else float("nan")
+    return scores
 
 
 BUTTER_CUTOFFS = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0)  # Hz (Nyquist: 15)
@@ -369,21 +375,21 @@ def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict
 
     clean = denoise_clips(0, clips_per_gait)
     noisy = noisy_copies(clean, seed + 1)
-    per = {"noisy": [_denoise_scores(n, c) for n, c in zip(noisy, clean, strict=True)]}
+    per = {"noisy": [_denoise_scores(n, c, n) for n, c in zip(noisy, clean, strict=True)]}
     t0 = time.perf_counter()
-    per["ours"] = [_denoise_scores(denoise(n, seed=seed), c) for n, c in zip(noisy, clean, strict=True)]
+    per["ours"] = [_denoise_scores(denoise(n, seed=seed), c, n) for n, c in zip(noisy, clean, strict=True)]
     ours_s = time.perf_counter() - t0
-    per["refiner"] = [_denoise_scores(r, c) for r, c in zip(refine_alone(noisy), clean, strict=True)]
+    per["refiner"] = [_denoise_scores(r, c, n) for r, c, n in zip(refine_alone(noisy), clean, noisy, strict=True)]
     on_clean = [_denoise_scores(r, c)["mean_joint_error_m"] for r, c in zip(refine_alone(clean), clean, strict=True)]
     best = {}
     filled = [fill_held(n) for n in noisy]  # the dropped frames interpolated first, as ours does
     for kind, params in (("butter", BUTTER_CUTOFFS), ("savgol", SAVGOL_WINDOWS)):
         for name, inputs in ((kind, noisy), (f"{kind} (held frames filled)", filled)):
-            pairs = list(zip(inputs, clean, strict=True))
-            tries = {p: [_denoise_scores(lowpass(n, kind, p), c) for n, c in pairs] for p in params}
+            pairs = list(zip(inputs, clean, noisy, strict=True))
+            tries = {p: [_denoise_scores(lowpass(n, kind, p), c, raw) for n, c, raw in pairs] for p in params}
             p = min(tries, key=lambda q: np.mean([r["mean_joint_error_m"] for r in tries[q]]))
             per[name], best[name] = tries[p], p
-    mean = {k: {s: float(np.mean([r[s] for r in v])) for s in v[0]} for k, v in per.items()}
+    mean = {k: {s: float(np.nanmean([r[s] for r in v])) for s in v[0]} for k, v in per.items()}  # nan: no spike
     from course_lib.evaluation import foot_skate
 
     out = {"mean": mean, "best_setting": best,
