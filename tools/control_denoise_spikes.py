@@ -3,8 +3,8 @@ joint, the largest error left after denoising sat at one of make_noisy's spiked 
 (0.23, 0.35 and 0.30 m, where the input was 0.75, 0.41 and 1.12 m off).  This measures the spike detector of
 `control/spikes.py` on its known answers, then the filter with and without it (``DenoiseConfig.spike_angle``).
 
-Detector, on held-out clips 0-23 of each gait (the scored 0-3, the tuning 4-7 and 16 more), after the dropped
-frames are interpolated as denoise does:
+Detector, on the first 24 held-out clips of each gait (34 clips: the held-out runs are fewer; the scored and the
+tuning clips among them), after the dropped frames are interpolated as denoise does:
   * clean clips: how many (frame, joint) pairs it flags (should be none) and the largest deviation it sees;
   * noisy clips: of the spiked frames' joints that the kick moved more than 0.15 rad, how many it flags; how
     many other pairs it flags; the largest kick it misses.
@@ -50,7 +50,8 @@ def detector(threshold: float) -> dict:
     for n, c in zip(noisy, clean, strict=True):
         truth, angle = kicked(n, c)
         found = median_deviation(fill_held(n)) > threshold
-        hit, kicks, other = hit + int((found & truth).sum()), kicks + int(truth.sum()), other + int((found & ~truth).sum())
+        hit, kicks = hit + int((found & truth).sum()), kicks + int(truth.sum())
+        other += int((found & ~truth).sum())
         missed += angle[truth & ~found].tolist()
     flagged = int(sum((d > threshold).sum() for d in dev_clean))
     return {"clips": len(clean), "clean_pairs_flagged": flagged,
@@ -63,7 +64,8 @@ def filter_rows(first: int) -> dict:
     clean = C.denoise_clips(first, 4)
     noisy = noisy_copies(clean, 1)
     out = {}
-    for name, angle in (("eq. 25 as printed (spike_angle None)", None), (f"spikes out ({SPIKE_ANGLE} rad)", SPIKE_ANGLE)):
+    for name, angle in (("eq. 25 as printed (spike_angle None)", None),
+                        (f"spikes out ({SPIKE_ANGLE} rad)", SPIKE_ANGLE)):
         rows = []
         for n, c in zip(noisy, clean, strict=True):
             d = denoise(n, seed=0, config=DenoiseConfig(spike_angle=angle))

@@ -171,7 +171,8 @@ def _angle_weight(spikes: np.ndarray) -> torch.Tensor:
     """(T, J) spiked joints -> (1, T-1, A) weights over `angle_cols`: joint 0 is the root's pitch and roll (2
     columns), joint j >= 1 its 3 expmap columns."""
     w = np.repeat(~spikes[1:, 1:], 3, axis=1)
-    return torch.from_numpy(np.concatenate((np.repeat(~spikes[1:, :1], 2, axis=1), w), 1).astype(np.float64))[None]
+    root = np.repeat(~spikes[1:, :1], 2, axis=1)
+    return torch.from_numpy(np.concatenate((root, w), 1).astype(np.float64))[None]
 
 
 def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: DenoiseConfig | None = None,
@@ -240,8 +241,9 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
 
     seed: torch's seed for the run (the solver is deterministic; kept for a uniform interface).
     start: the motion the solver starts from (same length and skeleton; None: the input, its held frames
-    interpolated if config.held_frames is "fill" and its spikes if config.spike_angle is set, then low-passed at config.start_cutoff_hz unless that is None or
-    the input is too short to filter, under lowpass.BUTTER_MIN_FRAMES frames)."""
+    interpolated if config.held_frames is "fill" and its spikes if config.spike_angle is set, then low-passed at
+    config.start_cutoff_hz unless that is None or the input is too short to filter, under lowpass.BUTTER_MIN_FRAMES
+    frames)."""
     from course_lib.control.dropouts import fill_held
     from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
     from course_lib.representations import encode_state_features
