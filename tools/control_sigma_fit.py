@@ -2,7 +2,8 @@
 on the cases where a baseline is closer on the mean of three seeds?
 
 Ours' designs trade the curve term against the prior: with sigma_fit^2 = 0.01 m^2 a root 10 cm off the curve costs
-one nat a frame (eq. 17: squared distance / sigma_fit^2), while the prior moves by hundreds of nats between poses.  This runs ours on the named cases and
+one nat a frame (eq. 17: squared distance / sigma_fit^2), while the prior moves by hundreds of nats between poses.
+This runs ours on the named cases and
 seeds with each ``--sigma-fit2``, exactly as the recorded rows otherwise (`experiments.control._offline_row`,
 planted), and prints the mean distance, end distance and skate beside the recorded rows (seed 0: the manifest's
 run; seeds 1-2: tools/control_baseline_seeds_results.json) and the closest baseline's mean over the seeds.
