@@ -2,7 +2,8 @@
 design settings).  The recorded design skates 0.079 m/s, just over the 2x limit of lesson 03's refined motion.
 This designs it again without planting, plants it (`planting.plant_legs`), and splits the skate measure
 (`evaluation.foot_skate`: the mean floor speed of toes below 5 cm on both frames of a pair) pair by pair: how many
-pairs, the fastest ones, and the share of the skate that the fastest pair alone makes.
+pairs, the fastest ones, the share of the skate that the fastest pair alone makes, and where that pair is (its
+frames, toe and toe heights).
 
     OMP_NUM_THREADS=1 python tools/control_scurve_skate.py --out tools/control_scurve_skate_results.json   # ~1.5 min
 
@@ -34,7 +35,11 @@ def pairs(m) -> dict:
     low = (p[1:, :, 1] < h) & (p[:-1, :, 1] < h)
     v = np.linalg.norm(p[1:, :, [0, 2]] - p[:-1, :, [0, 2]], axis=-1) * m.fps
     fast = np.sort(v[low])[::-1]
+    t, k = np.unravel_index(np.argmax(np.where(low, v, -1.0)), v.shape)  # the fastest pair: frames t, t + 1
     return {"foot_skate_m_s": float(foot_skate([m])), "low_pairs": int(low.sum()),
+            "fastest_pair": {"frames": [int(t), int(t) + 1], "toe": ["left", "right"][k],
+                             "toe_heights_m": p[t:t + 2, k, 1].tolist(),
+                             "toe_heights_around_m": p[max(t - 3, 0):t + 5, k, 1].tolist()},
             "fastest_pairs_m_s": fast[:5].tolist(), "fastest_pair_share_of_skate": float(fast[0] / fast.sum()),
             "skate_without_the_fastest_pair_m_s": float(fast[1:].mean())}
 
