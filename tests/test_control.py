@@ -712,6 +712,28 @@ def test_spikes_found_exactly_interpolated_and_left_out_of_eq25(prior, walk):
     assert out == [6 + 3 * (j - 1) + k for k in range(3)] and float(w.sum()) == w.numel() - 3
     assert denoise_problem(spiked, prior, replace(cfg, spike_angle=None)).angle_weight is None  # eq. (25) as printed
     assert denoise_problem(walk, prior, cfg).angle_weight is None  # nothing flagged, nothing changed
+    # a spike whose next frame was dropped (the capture held the spiked pose): found among the good frames, and
+    # the held copy is not used as an end of its interpolation
+    from course_lib.control.denoise import _angle_weight, cleaned_input, spikes_of
+
+    rot2 = rot.copy()
+    rot2[f + 1] = rot2[f]
+    held = replace(spiked, rotations=rot2, root_positions=np.concatenate(
+        (walk.root_positions[:f + 1], walk.root_positions[f:f + 1], walk.root_positions[f + 2:])))
+    found = spikes_of(held, cfg)
+    assert found.sum() == 1 and found[f, j]
+    fixed = cleaned_input(held, cfg, found)
+    for t in (f, f + 1):
+        err = 2 * np.arccos(min(1.0, abs(float((fixed.rotations[t, j] * walk.rotations[t, j]).sum()))))
+        assert err < 0.05
+    # the root's pitch and roll (joint 0) and the last joint map to their columns
+    edge = np.zeros((4, walk.skeleton.num_joints), bool)
+    edge[1, 0] = edge[2, -1] = True
+    w = _angle_weight(edge)[0]
+    assert [cols[a] for a in np.nonzero(w[0].numpy() == 0)[0]] == [4, 5]
+    assert [cols[a] for a in np.nonzero(w[1].numpy() == 0)[0]] == [prior.dim - 5, prior.dim - 4, prior.dim - 3]
+    with pytest.raises(ValueError, match="spike_angle"):
+        spikes_of(walk, replace(cfg, spike_angle=-1.0))
     with pytest.raises(ValueError, match="threshold"):
         spike_mask(walk, threshold=0.0)
     with pytest.raises(ValueError, match="odd"):

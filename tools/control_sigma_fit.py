@@ -5,8 +5,9 @@ Ours' designs trade the curve term against the prior: with sigma_fit^2 = 0.01 m^
 one nat a frame (eq. 17: squared distance / sigma_fit^2), while the prior moves by hundreds of nats between poses.
 This runs ours on the named cases and
 seeds with each ``--sigma-fit2``, exactly as the recorded rows otherwise (`experiments.control._offline_row`,
-planted), and prints the mean distance, end distance and skate beside the recorded rows (seed 0: the manifest's
-run; seeds 1-2: tools/control_baseline_seeds_results.json) and the closest baseline's mean over the seeds.
+planted), and prints the mean distance, end distance and skate beside the rows recorded at 0.01 (seeds 0-2 of
+every method: tools/control_baseline_seeds_fit001_results.json, tools/control_baseline_seeds.py's output before
+sigma_fit^2 became 0.0025) and the closest baseline's mean over the seeds there.
 
     OMP_NUM_THREADS=1 python tools/control_sigma_fit.py --out tools/control_sigma_fit_results.json \\
         --sigma-fit2 0.0025 0.005 --cases u_turn/walk s_curve/run u_turn/run polyline/run   # ~8 min, 2 processes
@@ -26,7 +27,7 @@ from course_lib.experiments.gmm_rnn import rounded
 
 SEEDS = (0, 1, 2)
 BASE_CONFIG = C._config
-SEEDS_FILE = Path(__file__).with_name("control_baseline_seeds_results.json")
+SEEDS_FILE = Path(__file__).with_name("control_baseline_seeds_fit001_results.json")  # recorded at 0.01
 KEYS = ("mean_root_to_curve_m", "end_distance_m", "foot_skate_m_s")
 
 

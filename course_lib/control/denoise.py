@@ -34,10 +34,10 @@ Differs from the paper (which gives no sigmas, no start and no noise model beyon
   stillness is real).  Measured on the tuning clips: 1.48 -> 1.14 cm mean joint error.
 - Spikes (ours, ``spike_angle``).  Eq. (25)'s Gaussian followed make_noisy's spikes (1 % of frames, 0.6-rad-sd
   kicks) part of the way: the largest error left was at a spiked frame in 3 of the 8 scored clips.  A joint more
-  than 0.35 rad from the median of its 3 frames around it (spikes.py; no joint of 48 held-out clean clips is) is a
-  missing observation: its columns are left out of eq. (25), and its rotation is interpolated in the input
-  (frame 0, the eq. 26 state and the contact bits come from that) and in the start
-  (tools/control_denoise_spikes.py).
+  than 0.35 rad from the median of its 3 frames around it (spikes.py; no joint of 34 held-out clean clips is) is a
+  missing observation: its columns are left out of eq. (25), and its rotation is interpolated in the input (the
+  eq. 26 state and the contact bits come from that) and in the start (tools/control_denoise_spikes.py).  The first
+  and last frame cannot be tested (spikes.py), so frame 0 is kept as given even if it is spiked.
 - Planting (ours, ``plant``).  Eq. (18) as a soft term leaves the estimate's feet skating 12x (scored clips) to 18x
   (tuning clips) the clean motion's: neither the prior nor a 3-cm contact sigma resolves the half millimetre a frame
   a planted toe may move (tools/control_denoise_prior.py), and lesson 03's `plant_feet` after the filter held the
@@ -67,7 +67,7 @@ from course_lib.control.window import WindowEnergy
 from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED, Motion
 
 __all__ = ["CONTACT_BITS", "FIRST_FRAME", "HELD_FRAMES", "DenoiseConfig",
-           "DenoiseProblem", "denoise", "denoise_problem", "spikes_of"]
+           "DenoiseProblem", "cleaned_input", "denoise", "denoise_problem", "spikes_of"]
 
 CONTACT_BITS = ("input", "start", "rounds")
 FIRST_FRAME = ("input", "start")
@@ -158,13 +158,29 @@ def angle_cols(dim: int) -> list:
 
 
 def spikes_of(motion: Motion, config: DenoiseConfig) -> np.ndarray:
-    """-> (T, J) bool, the input's spiked joints (spikes.py) as `denoise` sees them: found after its dropped frames
-    are interpolated (a held frame repeats its source exactly); all False if config.spike_angle is None."""
-    from course_lib.control.dropouts import fill_held
+    """-> (T, J) bool, the input's spiked joints (spikes.py) as `denoise` sees them: tested on the frames that are
+    not dropped (held frames repeat their source exactly and are interpolated anyway, if config.held_frames is
+    "fill"); all False if config.spike_angle is None."""
+    from course_lib.control.dropouts import dropped_mask
 
     if config.spike_angle is None:
         return np.zeros(motion.rotations.shape[:2], bool)
-    return spike_mask(fill_held(motion) if config.held_frames == "fill" else motion, config.spike_angle)
+    if not (np.isfinite(config.spike_angle) and config.spike_angle > 0):
+        raise ValueError(f"denoise: spike_angle must be an angle > 0 (rad) or None, got {config.spike_angle!r}")
+    frames = ~dropped_mask(motion) if config.held_frames == "fill" else None
+    return spike_mask(motion, config.spike_angle, frames=frames)
+
+
+def cleaned_input(motion: Motion, config: DenoiseConfig, spikes: np.ndarray) -> Motion:
+    """The input with its dropped frames (if config.held_frames is "fill") and its spiked joints interpolated
+    between good frames, in one pass (a spike next to a dropped frame is not used as an end of either)."""
+    from course_lib.control.dropouts import dropped_mask, fill_held
+
+    if config.held_frames != "fill":
+        return despike(motion, spikes) if spikes.any() else motion
+    dropped = dropped_mask(motion)
+    base = fill_held(motion)  # the root positions (and rotations) of the dropped frames
+    return despike(base, spikes | dropped[:, None]) if spikes.any() else base
 
 
 def _angle_weight(spikes: np.ndarray) -> torch.Tensor:
@@ -199,7 +215,8 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
         raise ValueError("denoise: motion contains NaN or inf")
     skel = motion.skeleton
     spikes = spikes_of(motion, config)
-    observed = despike(motion, spikes) if spikes.any() else motion  # the input, its spiked joints interpolated
+    # the input; with spikes, its spiked joints (and its dropped frames, the spikes' neighbours) interpolated
+    observed = cleaned_input(motion, config, spikes) if spikes.any() else motion
     c = prior.clean(torch.from_numpy(encode_state_features(observed)))[None]  # (1, T, D) the input c
     first = observed if first is None else first
     if len(first) != len(motion):
@@ -244,7 +261,6 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
     interpolated if config.held_frames is "fill" and its spikes if config.spike_angle is set, then low-passed at
     config.start_cutoff_hz unless that is None or the input is too short to filter, under lowpass.BUTTER_MIN_FRAMES
     frames)."""
-    from course_lib.control.dropouts import fill_held
     from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
     from course_lib.representations import encode_state_features
 
@@ -258,10 +274,7 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
     if not (np.isfinite(config.stance_speed) and config.stance_speed > 0):
         raise ValueError(f"denoise: stance_speed must be a speed > 0 (m/s), got {config.stance_speed!r}")
     if start is None:
-        base = fill_held(motion) if config.held_frames == "fill" else motion
-        spikes = spikes_of(motion, config)
-        if spikes.any():
-            base = despike(base, spikes)
+        base = cleaned_input(motion, config, spikes_of(motion, config))
         if config.start_cutoff_hz is not None and len(motion) >= BUTTER_MIN_FRAMES:
             start = lowpass(base, "butter", config.start_cutoff_hz)
         elif base is not motion:

@@ -8,6 +8,8 @@ So a spike is found before the search and treated as a missing observation, as a
 median of the ``window`` frames around it (a Hampel test: the median of 3 frames ignores one outlier, and on a
 smooth rotation it is the frame itself to second order), `despike` replaces the flagged rotations by the slerp
 between that joint's nearest unflagged frames, and denoise.py leaves those joints' columns out of eq. (25).
+Limits: the first and last frame are never flagged (their median window repeats them), nor are two spikes of one
+joint on consecutive frames (the median of 3 then follows them).
 
 Taught in notebooks/04_map_control.ipynb.
 """
@@ -25,15 +27,17 @@ from course_lib.rotations import quat_slerp
 
 __all__ = ["SPIKE_ANGLE", "SPIKE_WINDOW", "despike", "median_deviation", "spike_mask"]
 
-SPIKE_ANGLE = 0.35  # rad: a joint this far from its running median is a spike.  Held-out clean clips (48, walks
-# and runs) reach 0.34 at most (a running knee's turn-around); tools/control_denoise_spikes.py measures the rest
+SPIKE_ANGLE = 0.35  # rad: a joint this far from its running median is a spike.  Held-out clean clips (34, walks
+# and runs) reach 0.338 at most (a running knee's turn-around); tools/control_denoise_spikes.py measures the rest
 SPIKE_WINDOW = 3  # frames of the running median (odd; it ignores (window - 1) / 2 outliers in a row); 5 frames put
 # a running knee's turn-around 0.49 rad from its median
 
 
-def median_deviation(motion: Motion, window: int = SPIKE_WINDOW) -> np.ndarray:
+def median_deviation(motion: Motion, window: int = SPIKE_WINDOW, frames: np.ndarray | None = None) -> np.ndarray:
     """motion -> (T, J) the angle (rad) between each joint's rotation and the running median of its
-    sign-continuous quaternions over ``window`` frames (component-wise, renormalised; the ends repeat)."""
+    sign-continuous quaternions over ``window`` frames (component-wise, renormalised; the ends repeat, so the first
+    and last frame deviate by 0 and are never flagged).  frames (T,) bool: only these frames are compared, with
+    each other (a capture's held frames left out); the others get 0."""
     from scipy.ndimage import median_filter
 
     if not isinstance(motion, Motion):
@@ -42,17 +46,25 @@ def median_deviation(motion: Motion, window: int = SPIKE_WINDOW) -> np.ndarray:
         raise ValueError(f"spikes: window must be an odd number of frames >= 3, got {window}")
     if not np.isfinite(motion.rotations).all():
         raise ValueError("spikes: motion contains NaN or inf")
-    q = continuous_quaternions(motion.rotations)
-    med = median_filter(q, size=(window, 1, 1), mode="nearest")
-    med /= np.linalg.norm(med, axis=-1, keepdims=True)
-    return 2 * np.arccos(np.clip(np.abs((q * med).sum(-1)), 0.0, 1.0))
+    keep = np.ones(len(motion), bool) if frames is None else np.asarray(frames, bool)
+    if keep.shape != (len(motion),):
+        raise ValueError(f"spikes: frames must be a ({len(motion)},) bool array, got shape {keep.shape}")
+    out = np.zeros(motion.rotations.shape[:2])
+    if keep.any():
+        q = continuous_quaternions(motion.rotations[keep])
+        med = median_filter(q, size=(window, 1, 1), mode="nearest")
+        med /= np.linalg.norm(med, axis=-1, keepdims=True)
+        out[keep] = 2 * np.arccos(np.clip(np.abs((q * med).sum(-1)), 0.0, 1.0))
+    return out
 
 
-def spike_mask(motion: Motion, threshold: float = SPIKE_ANGLE, window: int = SPIKE_WINDOW) -> np.ndarray:
-    """motion -> (T, J) bool: the (frame, joint) rotations more than ``threshold`` rad from their running median."""
+def spike_mask(motion: Motion, threshold: float = SPIKE_ANGLE, window: int = SPIKE_WINDOW,
+               frames: np.ndarray | None = None) -> np.ndarray:
+    """motion -> (T, J) bool: the (frame, joint) rotations more than ``threshold`` rad from their running median
+    (`median_deviation`; frames: only those frames are tested, with each other)."""
     if not (np.isfinite(threshold) and threshold > 0):
         raise ValueError(f"spikes: threshold must be an angle > 0 (rad), got {threshold!r}")
-    return median_deviation(motion, window) > threshold
+    return median_deviation(motion, window, frames) > threshold
 
 
 def despike(motion: Motion, mask: np.ndarray) -> Motion:
