@@ -36,7 +36,8 @@ ours on the mean of three seeds on four cases (the walking U-turn, the running S
 S-curve to greedy steering, 0.071 against 0.070 m: tools/control_sigma_fit.py). The retry thresholds below
 (retry_control, retry_rise) were set at 0.01 and not re-measured at 0.0025, where the same offset costs 4x as much.
 The number of candidates, PSO and L-BFGS iterations are not given; ours are in `DesignConfig`. The variables are
-the RNN sampler's noise (eps, Gumbel) and d, not the frames themselves (rollout.py says why); L-BFGS holds the Gumbel variables (the mixture components) fixed.
+the RNN sampler's noise (eps, Gumbel) and d, not the frames themselves (rollout.py says why); L-BFGS holds the
+Gumbel variables (the mixture components) fixed.
 Eq. (18)'s contact labels c_i are the RNN's contact bits or a toe below 5 cm (``contact_height``, foot_skate's own
 height; ours): with the bits alone the walking S-curve, U-turn and polyline skated 0.27 / 0.17 / 0.29 m/s, from low
 toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, tools/control_contact_height.py).
