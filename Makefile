@@ -10,7 +10,7 @@
 #   make student-copies  only write the student copies into student/ (keeps existing ones; FORCE=1 rewrites)
 #   make reproduce   retrain every checkpoint with the command in checkpoints/MANIFEST.json (COURSE_MODE=full)
 #   make bench       timings table (python -m course_lib.bench)
-#   make clean       remove site/ and caches (make distclean also removes .venv and data/)
+#   make clean       remove site/, build/ and caches, never student/ (make distclean also removes .venv and data/)
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
@@ -28,7 +28,7 @@ DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 # the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
 HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
-.PHONY: help setup data course site test lint unit nbval reproduce student student-copies bench clean distclean
+.PHONY: help setup data course site test lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
 
 help:
 	@sed -n '4,14p' Makefile | sed 's/^# \{0,1\}//'
@@ -112,10 +112,15 @@ student: student-copies data
 bench: setup
 	$(PY) -m course_lib.bench
 
+# `clean` never touches student/ (your answers); `delete-student-answers` does, and says so.
 clean:
-	rm -rf site build student .pytest_cache .ruff_cache .hypothesis
+	rm -rf site build .pytest_cache .ruff_cache .hypothesis
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 	find notebooks -name .ipynb_checkpoints -type d -prune -exec rm -rf {} +
 
 distclean: clean
 	rm -rf $(VENV) data *.egg-info
+
+delete-student-answers:
+	@echo "delete-student-answers: removing student/ and every answer in it"
+	rm -rf student

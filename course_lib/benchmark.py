@@ -1,7 +1,7 @@
 """Lesson 07: one benchmark of every model of the course on one protocol.
 
-    python -m course_lib.benchmark          # the full benchmark -> course_lib/benchmark_results.{json,md}
-    python -m course_lib.benchmark --ci     # fewer clips and seeds (CI: under 4 minutes) -> --out
+    python -m course_lib.benchmark --force  # the full benchmark -> course_lib/benchmark_results.{json,md}, replaced
+    python -m course_lib.benchmark --ci --out /tmp/bench.json  # fewer clips and seeds (CI: under 4 minutes)
 
 Taught in notebooks/07_benchmark.ipynb.  No paper compares these models with each other; the course can,
 because they all run on the same synthetic data.  The protocol:
@@ -49,6 +49,7 @@ import numpy as np
 import torch
 
 from course_lib.motion import Motion
+from course_lib.outputs import check_outputs
 from course_lib.reproduce import rounded
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -818,9 +819,16 @@ def main(argv=None) -> int:
                         help=f"results JSON (default {RESULTS.name}, --ci: benchmark_results_ci.json beside it); "
                              "the Markdown table goes beside it")
     parser.add_argument("--checkpoints", type=Path, default=CHECKPOINTS)
+    parser.add_argument("--force", action="store_true", help="replace existing results (.json and .md)")
     args = parser.parse_args(argv)
-    torch.set_num_threads(1)
     out = args.out or (RESULTS.with_name("benchmark_results_ci.json") if args.ci else RESULTS)
+    if out.suffix.lower() != ".json":
+        parser.error(f"--out {out}: give a .json path (the Markdown table is written beside it as {out.stem}.md)")
+    try:  # both files, before the run: nothing existing is replaced without --force
+        check_outputs([out, out.with_suffix(".md")], overwrite=args.force, who="course_lib.benchmark")
+    except (FileExistsError, ValueError) as err:
+        parser.error(str(err))
+    torch.set_num_threads(1)
     results = run(BenchSpec.ci() if args.ci else BenchSpec(), args.checkpoints)
     out.write_text(json.dumps(results, indent=1) + "\n")
     out.with_suffix(".md").write_text(markdown(results))

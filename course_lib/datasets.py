@@ -37,8 +37,11 @@ import torch
 from torch.utils.data import Dataset
 from tqdm.auto import tqdm
 
+from course_lib.checksums import write_sidecar
+from course_lib.manifest import record_file, verify_file
 from course_lib.modes import course_mode
 from course_lib.motion import Motion, foot_contacts
+from course_lib.outputs import check_outputs
 from course_lib.representations import REPRESENTATIONS, encode, feature_names, root_yaw_pitch_roll
 from course_lib.skeleton import Skeleton
 
@@ -75,9 +78,7 @@ def write_npz(arrays: dict[str, np.ndarray], path, *, overwrite: bool = False) -
     Refuses to replace an existing file unless overwrite=True; a crash or Ctrl-C leaves no
     partial file (the data goes to a temp file in the same folder, then os.replace).
     """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True (scripts: --force) to replace it")
+    path = check_outputs([path], overwrite=overwrite, who="write_npz")[0]
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
@@ -156,12 +157,20 @@ def save_motions(motions: list[Motion], path, *, meta: dict | None = None, overw
     return write_npz(arrays, path, overwrite=overwrite)
 
 
+def _starts_with(path: Path, magic: bytes) -> bool:
+    with open(path, "rb") as fh:
+        return fh.read(len(magic)) == magic
+
+
 def _open(path) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path} does not exist (make it with data_scripts/, see README)")
     if path.is_file() and path.stat().st_size == 0:
         raise ValueError(f"{path} is empty (0 bytes), not a .npz motion file; remake it with data_scripts/")
+    if path.is_file() and not zipfile.is_zipfile(path) and not _starts_with(path, b"\x93NUMPY"):
+        raise ValueError(f"{path} is not a .npz motion file (not a zip archive: a text or other file?); "
+                         "motion files are written by data_scripts/ or course_lib.datasets.save_motions")
     try:
         loaded = np.load(path, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
@@ -392,14 +401,21 @@ class WindowDataset(Dataset):
             return tuple(torch.as_tensor(s, dtype=x.dtype, device=x.device) for s in self.stats)
         return self.stats
 
-    def save_stats(self, path, *, overwrite: bool = True) -> Path:
-        """Write mean/std (+ representation and feature names) to an .npz (see `stats_path`)."""
-        return write_npz({"mean": self.stats[0], "std": self.stats[1], "representation": np.array(self.representation),
+    def save_stats(self, path, *, overwrite: bool = True, command: str | None = None) -> Path:
+        """Write mean/std (+ representation and feature names) to an .npz (see `stats_path`) and its sha256:
+        in the manifest beside it with ``command`` (the statistics of a checkpoint), else in a sidecar."""
+        path = write_npz({"mean": self.stats[0], "std": self.stats[1], "representation": np.array(self.representation),
                           "feature_names": np.array(self.feature_names)}, path, overwrite=overwrite)
+        record_file(path, command=command) if command else write_sidecar(path)
+        return path
 
 
-def load_stats(path, representation: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """-> (mean (D,), std (D,)) saved by `WindowDataset.save_stats`; checks the representation if given."""
+def load_stats(path, representation: str | None = None, *, verify: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """-> (mean (D,), std (D,)) saved by `WindowDataset.save_stats`; checks the representation if given.
+    verify: the file's sha256 must match its manifest entry or sidecar first (`manifest.verify_file`): a model fed
+    shifted statistics would give plausible wrong motion."""
+    if verify:
+        verify_file(path)
     with np.load(path, allow_pickle=False) as z:
         if representation is not None and str(z["representation"]) != representation:
             raise ValueError(f"{path} holds statistics of {str(z['representation'])!r}, not {representation!r}")
@@ -607,25 +623,43 @@ def _write_text(text: str, path: Path) -> None:
     os.replace(tmp, path)
 
 
-def write_data_card(card: dict, data_path) -> tuple[Path, Path]:
-    """Write <stem>.card.json and <stem>.card.md beside the data file."""
+def card_paths(data_path) -> tuple[Path, Path]:
+    """The data card's two companions of a data file: <stem>.card.json and <stem>.card.md beside it."""
     p = Path(data_path)
-    paths = p.with_name(p.stem + ".card.json"), p.with_name(p.stem + ".card.md")
+    return p.with_name(p.stem + ".card.json"), p.with_name(p.stem + ".card.md")
+
+
+def dataset_paths(data_path) -> tuple[Path, Path, Path]:
+    """Every file `write_dataset` writes: the .npz and its two card files."""
+    return (Path(data_path), *card_paths(data_path))
+
+
+def write_data_card(card: dict, data_path, *, overwrite: bool = False) -> tuple[Path, Path]:
+    """Write <stem>.card.json and <stem>.card.md beside the data file (existing cards: overwrite=True)."""
+    paths = card_paths(data_path)
+    check_outputs(paths, overwrite=overwrite, who="write_data_card")
     _write_text(json.dumps(card, indent=1) + "\n", paths[0])
     _write_text(_card_markdown(card), paths[1])
     return paths
 
 
 def write_dataset(motions: list[Motion], path, *, card: dict, meta: dict | None = None,
-                  overwrite: bool = False) -> Path:
+                  overwrite: bool = False, inputs=()) -> Path:
     """save_motions + the data card beside (the card's command line is not stored in the .npz, so the
-    same data written to another path has the same bytes)."""
+    same data written to another path has the same bytes).  All three files are checked before any is
+    written (`outputs.check_outputs`): none may be in `inputs`, none may exist unless overwrite=True."""
+    check_outputs(dataset_paths(path), overwrite=overwrite, inputs=inputs, who="write_dataset")
     path = save_motions(motions, path, meta=meta, overwrite=overwrite)
-    write_data_card(card, path)
+    write_data_card(card, path, overwrite=True)
     return path
 
 
 # --- ready-made datasets ----------------------------------------------------------------
+
+# The most a data script generates in one run: the full locomotion set is 1800 clips x 4 s = 7200 s, and
+# generation holds every clip at 120 fps in memory (about 1 GB per 7200 s).
+MAX_GENERATED_SECONDS = 100_000.0
+MAX_ACTION_SUBJECTS = 1000  # the full actions set has 40 subjects x 8 clips
 
 # In-memory sizes when data/<name>.npz is absent, per COURSE_MODE (locomotion: clips; actions:
 # subjects, each doing 4 actions x 2 styles).  The data_scripts defaults are the "full" sizes.

@@ -10,6 +10,8 @@ Taught in notebooks/00_skeletons_and_rotations.ipynb.
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -39,6 +41,10 @@ class Motion:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if not isinstance(self.skeleton, Skeleton):
+            raise TypeError("Motion: skeleton must be a course_lib.skeleton.Skeleton, "
+                            f"got {type(self.skeleton).__name__}")
+        self.fps = check_fps(self.fps, "Motion")
         self.rotations = np.asarray(self.rotations, dtype=np.float64)
         self.root_positions = np.asarray(self.root_positions, dtype=np.float64)
         J = self.skeleton.num_joints
@@ -54,8 +60,6 @@ class Motion:
         if T and np.abs(norms - 1).max() > 1e-3:
             raise ValueError(f"Motion: rotations must be unit quaternions (norms range "
                              f"{norms.min():.4f}..{norms.max():.4f})")
-        if not self.fps > 0:
-            raise ValueError(f"Motion: fps must be positive, got {self.fps}")
         self.rotations = self.rotations / norms[..., None] if T else self.rotations
 
     def __len__(self) -> int:
@@ -71,12 +75,33 @@ class Motion:
         return max(len(self) - 1, 0) / self.fps
 
     def __getitem__(self, frames) -> "Motion":
-        if isinstance(frames, int):
-            frames = slice(frames, frames + 1 if frames != -1 else None)
+        """m[t] -> a one-frame Motion (IndexError outside -T..T-1, like a sequence); m[a:b:s] -> the frames
+        a, a+s, ... at fps / |s|, so the clip still plays at its real speed.  Other indices are refused."""
+        T = len(self)
+        fps = self.fps
+        if isinstance(frames, numbers.Integral) and not isinstance(frames, bool):
+            t = int(frames)
+            if not -T <= t < T:
+                raise IndexError(f"Motion: frame index {t} out of range for a {T}-frame motion")
+            t %= T
+            frames = slice(t, t + 1)
+        elif isinstance(frames, slice):
+            step = 1 if frames.step is None else frames.step
+            if not isinstance(step, numbers.Integral) or step == 0:
+                raise ValueError(f"Motion: slice step must be a non-zero integer, got {frames.step!r}")
+            fps = self.fps / abs(int(step))
+        else:
+            raise TypeError(f"Motion: index with an integer or a slice, got {type(frames).__name__} "
+                            "(frames picked at uneven times would not have one frame rate)")
         return replace(self, rotations=self.rotations[frames], root_positions=self.root_positions[frames],
-                       meta=dict(self.meta))
+                       fps=fps, meta=dict(self.meta))
 
     def _fk(self) -> tuple[torch.Tensor, torch.Tensor]:
+        # The arrays can be written after construction: check again before any value is derived from them.
+        if not np.isfinite(self.root_positions).all():
+            raise ValueError("Motion: root_positions contain NaN or inf (written after the Motion was made?)")
+        if not np.isfinite(self.rotations).all():
+            raise ValueError("Motion: rotations contain NaN or inf (written after the Motion was made?)")
         return forward_kinematics(torch.from_numpy(self.rotations), torch.from_numpy(self.root_positions),
                                   torch.from_numpy(self.skeleton.offsets), self.skeleton.parents)
 
@@ -94,8 +119,7 @@ class Motion:
 
     def resample(self, fps: float) -> "Motion":
         """The same motion at another frame rate: slerp for rotations, linear for the root."""
-        if not fps > 0:
-            raise ValueError(f"resample: fps must be positive, got {fps}")
+        fps = check_fps(fps, "resample")
         T = len(self)
         if T == 0:
             return replace(self, fps=float(fps), meta=dict(self.meta))
@@ -133,6 +157,17 @@ class Motion:
                            (("action", self.action), ("style", self.style), ("subject", self.subject)) if v)
         tail = f", {labels}" if labels else ""
         return f"Motion({len(self)} frames @ {self.fps:g} fps, {self.skeleton.num_joints} joints{tail})"
+
+
+def check_fps(fps, name: str) -> float:
+    """A frame rate as a float: a finite number > 0, else a ValueError that names ``name`` and the value."""
+    try:
+        value = None if isinstance(fps, (bool, str, bytes)) else float(fps)
+    except (TypeError, ValueError):
+        value = None
+    if value is None or not math.isfinite(value) or not value > 0:
+        raise ValueError(f"{name}: fps must be positive and finite (frames per second), got {fps!r}")
+    return value
 
 
 STANCE_MAX_ABOVE = 0.05  # m: a toe flagged in contact this far above the other toe is in the air

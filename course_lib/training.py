@@ -16,12 +16,10 @@ entry or, for a file the manifest does not list (a copy elsewhere), its sidecar.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import platform
 import random
-import tempfile
 import time
 import typing
 from collections.abc import Callable, Iterable
@@ -31,7 +29,8 @@ import numpy as np
 import torch
 
 from . import __version__
-from .checksums import is_sha256, read_sidecar, sha256_file, sidecar_path, write_sidecar
+from .checksums import sha256_file, write_sidecar
+from .manifest import entry_name, manifest_path, read_manifest, update_manifest, verify_file
 
 __all__ = [
     "History",
@@ -274,19 +273,6 @@ def _progress(total, progress, desc):
 # ----------------------------------------------------------------------------- checkpoints
 
 
-def _manifest_path(path: Path, manifest: str | os.PathLike | None) -> Path:
-    return Path(manifest) if manifest is not None else path.parent / "MANIFEST.json"
-
-
-def _entry_name(path: Path, manifest_path: Path) -> str:
-    """The manifest key of a checkpoint: its path relative to the manifest's folder, without suffix."""
-    try:
-        rel = path.resolve().relative_to(manifest_path.resolve().parent)
-    except ValueError:
-        rel = Path(path.name)
-    return rel.with_suffix("").as_posix()
-
-
 def _jsonable(x):
     """Turn tuples, numpy and torch scalars into plain JSON types."""
     if isinstance(x, dict):
@@ -296,28 +282,6 @@ def _jsonable(x):
     if isinstance(x, (np.generic, torch.Tensor)):
         return x.item()
     return x
-
-
-def _update_manifest(manifest_path: Path, name: str, entry: dict) -> None:
-    """Read-modify-write MANIFEST.json under an exclusive lock (several helpers may write at once)."""
-    manifest_path.parent.mkdir(parents=True, exist_ok=True)
-    # the lock file lives in the temp dir so that no stray file appears next to the checkpoints
-    key = hashlib.sha256(str(manifest_path.resolve()).encode()).hexdigest()[:16]
-    lock = open(Path(tempfile.gettempdir()) / f"course_lib_manifest_{key}.lock", "w")
-    try:
-        try:
-            import fcntl
-
-            fcntl.flock(lock, fcntl.LOCK_EX)
-        except ImportError:  # Windows: no advisory locks; single-writer use is fine
-            pass
-        table = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
-        table[name] = entry
-        tmp = manifest_path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(dict(sorted(table.items())), indent=2) + "\n")
-        os.replace(tmp, manifest_path)
-    finally:
-        lock.close()
 
 
 def training_environment() -> dict:
@@ -355,7 +319,7 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save(payload, path)
     write_sidecar(path)
-    mpath = _manifest_path(path, manifest)
+    mpath = manifest_path(path, manifest)
     entry = {
         "file": os.path.relpath(path.resolve(), mpath.resolve().parent).replace(os.sep, "/"),
         "sha256": sha256_file(path), "bytes": path.stat().st_size, "config": config_dict,
@@ -365,7 +329,7 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
     trained_on = training_environment() if environment is None else environment
     if trained_on:
         entry["trained_on"] = _jsonable(trained_on)
-    _update_manifest(mpath, _entry_name(path, mpath), entry)
+    update_manifest(mpath, entry_name(path, mpath), entry)
     return entry
 
 
@@ -375,8 +339,8 @@ def record_metrics(path: str | os.PathLike, model_cls, config_cls, **metrics) ->
     Returns the new entry."""
     path = Path(path)
     model = load_checkpoint(path, model_cls, config_cls)
-    mpath = _manifest_path(path, None)
-    entry = _read_manifest(mpath)[_entry_name(path, mpath)]
+    mpath = manifest_path(path, None)
+    entry = read_manifest(mpath)[entry_name(path, mpath)]
     return save_checkpoint(model, model.config, path, command=entry["command"],
                            metrics={**entry["metrics"], **metrics}, overwrite=True,
                            environment=entry.get("trained_on", {}))
@@ -385,9 +349,9 @@ def record_metrics(path: str | os.PathLike, model_cls, config_cls, **metrics) ->
 def recorded_metrics(path: str | os.PathLike) -> dict:
     """The metrics of a checkpoint's manifest entry (what `save_checkpoint` / `record_metrics` stored)."""
     path = Path(path)
-    mpath = _manifest_path(path, None)
-    name = _entry_name(path, mpath)
-    table = _read_manifest(mpath)
+    mpath = manifest_path(path, None)
+    name = entry_name(path, mpath)
+    table = read_manifest(mpath)
     if name not in table:
         raise KeyError(f"{mpath} has no entry {name!r}; build it with the lesson's reproduction command")
     return table[name]["metrics"]
@@ -408,39 +372,6 @@ def _config_from_dict(config_cls, values: dict):
     return config_cls(**kwargs)
 
 
-def _read_manifest(mpath: Path) -> dict:
-    """MANIFEST.json -> {name: entry}; a malformed file is a ValueError that says so."""
-    try:
-        table = json.loads(mpath.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise ValueError(f"{mpath} is not valid JSON ({err}); restore it (git checkout -- {mpath}) or rebuild "
-                         "its checkpoints with the commands it listed") from None
-    if not isinstance(table, dict) or not all(isinstance(e, dict) for e in table.values()):
-        raise ValueError(f"{mpath} is malformed: expected an object of checkpoint entries; restore it "
-                         f"(git checkout -- {mpath})")
-    return table
-
-
-def _expected_sha256(path: Path, mpath: Path) -> tuple[str, str]:
-    """-> (sha256 the file must have, what to run if it does not): the manifest's entry, else the sidecar."""
-    name = _entry_name(path, mpath)
-    entry = _read_manifest(mpath).get(name) if mpath.exists() else None
-    if entry is not None:
-        command = entry.get("command", "the command that made it")
-        if not is_sha256(entry.get("sha256")):
-            raise ValueError(f"{mpath}: the entry {name!r} has no valid sha256, so {path} cannot be verified; "
-                             f"rebuild it with: {command}")
-        return entry["sha256"], f"Rebuild it with: {command}"
-    side = read_sidecar(path)
-    if side is not None:
-        return side, f"Restore the file together with its sidecar {sidecar_path(path).name}, or rebuild it."
-    raise ValueError(
-        f"cannot verify {path}: {mpath} {'has no entry ' + repr(name) if mpath.exists() else 'does not exist'} and "
-        f"there is no sidecar {sidecar_path(path)}. Copy the checkpoint with its .sha256 sidecar (save_checkpoint "
-        "writes one). If you trust this file, record its hash with course_lib.checksums.write_sidecar(path), "
-        "or load it with verify=False.")
-
-
 def load_checkpoint(path: str | os.PathLike, model_cls, config_cls, *, manifest: str | os.PathLike | None = None,
                     verify: bool = True) -> torch.nn.Module:
     """Rebuild ``model_cls(config_cls(**config))`` from ``path`` and load its weights (eval mode).
@@ -454,11 +385,7 @@ def load_checkpoint(path: str | os.PathLike, model_cls, config_cls, *, manifest:
     if not path.exists():
         raise FileNotFoundError(f"checkpoint {path} not found")
     if verify:
-        expected, fix = _expected_sha256(path, _manifest_path(path, manifest))
-        actual = sha256_file(path)
-        if actual != expected:
-            raise ValueError(f"sha256 mismatch for {path}: expected {expected[:12]}..., file {actual[:12]}...; "
-                             f"the file is corrupt or stale. {fix}")
+        verify_file(path, manifest)
     payload = torch.load(path, map_location="cpu", weights_only=True)
     if payload.get("config_class") not in (None, config_cls.__name__):
         raise TypeError(f"{path} holds a {payload['config_class']}, not a {config_cls.__name__}")

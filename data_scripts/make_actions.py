@@ -10,6 +10,7 @@ it (<stem>.card.json, <stem>.card.md).  The same arguments give the same bytes.
 """
 
 import argparse
+import math
 import shlex
 import sys
 import time
@@ -27,10 +28,13 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2; output does not depend on it)")
     ap.add_argument("--force", action="store_true", help="replace an existing output file")
     args = ap.parse_args(argv)
-    if args.out.exists() and not args.force:
-        ap.error(f"{args.out} exists; pass --force to replace it")
-    if args.subjects < 1 or args.fps <= 0:
-        ap.error("--subjects and --fps must be positive")
+    try:  # the .npz and its two card files, before any work (nothing existing is replaced without --force)
+        D.check_outputs(D.dataset_paths(args.out), overwrite=args.force, who=Path(__file__).name)
+    except (FileExistsError, ValueError) as err:
+        ap.error(str(err))
+    if not 1 <= args.subjects <= D.MAX_ACTION_SUBJECTS or not 0 < args.fps < math.inf:
+        ap.error(f"--subjects must be 1..{D.MAX_ACTION_SUBJECTS} and --fps a positive finite number, "
+                 f"got {args.subjects}, {args.fps}")
     t0 = time.time()
     motions = D.generate_actions_set(args.subjects, args.seed, args.fps, workers=args.workers, progress=True)
     params = dict(kind="actions", seed=args.seed, subjects=args.subjects, actions=list(D.ACTIONS),

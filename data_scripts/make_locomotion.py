@@ -30,11 +30,17 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2; output does not depend on it)")
     ap.add_argument("--force", action="store_true", help="replace an existing output file")
     args = ap.parse_args(argv)
-    if args.out.exists() and not args.force:
-        ap.error(f"{args.out} exists; pass --force to replace it")
+    try:  # the .npz and its two card files, before any work (nothing existing is replaced without --force)
+        D.check_outputs(D.dataset_paths(args.out), overwrite=args.force, who=Path(__file__).name)
+    except (FileExistsError, ValueError) as err:
+        ap.error(str(err))
     if args.clips < 1 or not 0 < args.fps < math.inf or not 0 < args.duration < math.inf:
         ap.error(f"--clips, --fps and --duration must be positive finite numbers, got {args.clips}, {args.fps}, "
                  f"{args.duration}")
+    if args.clips * args.duration > D.MAX_GENERATED_SECONDS:
+        ap.error(f"--clips {args.clips} x --duration {args.duration:g} s = {args.clips * args.duration:.3g} s "
+                 f"of motion: more than the {D.MAX_GENERATED_SECONDS:g} s (about "
+                 f"{D.MAX_GENERATED_SECONDS / 7200:g}x the full set) that fit in memory; ask for fewer clips")
     if args.subjects is not None and args.subjects < 1:
         ap.error(f"--subjects must be at least 1 (or left out for the default), got {args.subjects}")
     t0 = time.time()

@@ -31,11 +31,12 @@ def main(argv=None) -> None:
     ap.add_argument("--force", action="store_true", help="replace an existing output file")
     args = ap.parse_args(argv)
     out = args.out or args.input.with_name(args.input.stem + "_noisy.npz")
-    if out.resolve() == args.input.resolve() or (out.exists() and args.input.exists() and out.samefile(args.input)):
-        ap.error(f"--out {out} is the --input file: the noisy set must not replace the clean set it is made "
-                 "from (--force does not change this); choose another --out")
-    if out.exists() and not args.force:
-        ap.error(f"{out} exists; pass --force to replace it")
+    # the .npz and its card files: never the clean input's (whatever --force says), nor existing ones without --force
+    try:
+        D.check_outputs(D.dataset_paths(out), overwrite=args.force, inputs=D.dataset_paths(args.input),
+                        who=Path(__file__).name)
+    except (FileExistsError, ValueError) as err:
+        ap.error(str(err))
     if not args.input.exists():
         ap.error(f"{args.input} does not exist; make it first (make_locomotion.py or make_actions.py)")
     if args.clips is not None and args.clips < 1:
@@ -55,7 +56,7 @@ def main(argv=None) -> None:
     card = D.data_card(noisy, name=out.stem, seed=args.seed, command=command,
                      description=f"Noisy copies (course_lib.synthetic.add_noise) of the first {len(noisy)} clips of "
                                  f"{args.input.name}; pairs: course_lib.datasets.load_noisy_pairs.")
-    D.write_dataset(noisy, out, card=card, meta=params, overwrite=args.force)
+    D.write_dataset(noisy, out, card=card, meta=params, overwrite=args.force, inputs=D.dataset_paths(args.input))
     print(f"wrote {out} ({len(noisy)} clips) in {time.time() - t0:.1f} s")
 
 

@@ -126,12 +126,12 @@ def test_noisy_cli_cannot_destroy_the_clean_set(tmp_path, capsys):
     script("make_locomotion").main(["--clips", "2", "--subjects", "1", "--duration", "1", "--out", str(clean),
                                     "--workers", "1"])
     before = sha(clean)
-    cases = [(["--out", str(clean), "--force"], "is the --input file"),
-             (["--out", str(tmp_path / "." / "clean.npz"), "--force"], "is the --input file"),
+    cases = [(["--out", str(clean), "--force"], "is the input file"),
+             (["--out", str(tmp_path / "." / "clean.npz"), "--force"], "is the input file"),
              (["--clips", "-1"], "--clips must be at least 1"), (["--clips", "0"], "--clips must be at least 1"),
              (["--clips", "3"], "holds only 2 clips"), (["--fps", "nan"], "--fps must be a positive finite")]
     (tmp_path / "link.npz").symlink_to(clean)
-    cases.append((["--out", str(tmp_path / "link.npz"), "--force"], "is the --input file"))
+    cases.append((["--out", str(tmp_path / "link.npz"), "--force"], "is the input file"))
     for args, words in cases:
         with pytest.raises(SystemExit) as e:
             script("make_noisy").main(["--input", str(clean), *args])

@@ -83,7 +83,7 @@ def test_load_errors(tmp_path):
     with pytest.raises(ValueError, match="no schema_version"):
         D.load_motions(tmp_path / "other.npz")
     (tmp_path / "text.npz").write_text("not a zip")
-    with pytest.raises(ValueError, match="not a readable"):
+    with pytest.raises(ValueError, match="not a .npz motion file .not a zip archive"):
         D.load_motions(tmp_path / "text.npz")
     with pytest.raises(ValueError, match="no motions"):
         D.save_motions([], tmp_path / "empty.npz")

@@ -4,7 +4,8 @@ Usage: python tools/student_copies.py --notebooks notebooks --out student [--for
 
 `make student-copies` runs it (`make student` too, then opens JupyterLab in student/).  A copy that
 is already there holds the student's answers and is kept; `--force` (`make student-copies FORCE=1`)
-writes it anew.
+writes it anew and first copies the answers it replaces to ``<out>/backups/<date-time>/``.  The
+output folder can never be the lessons' folder.
 
 How a lesson marks its exercises (nbgrader's conventions, schema 3, as the "Create Assignment"
 toolbar writes them):
@@ -31,6 +32,8 @@ from __future__ import annotations
 
 import argparse
 import copy
+import shutil
+import time
 from pathlib import Path
 
 import nbformat
@@ -97,7 +100,13 @@ def main(argv=None) -> list[Path]:
     ap.add_argument("--out", type=Path, default=Path("student"))
     ap.add_argument("--force", action="store_true", help="overwrite copies that exist (and the answers in them)")
     args = ap.parse_args(argv)
+    if not args.notebooks.is_dir():
+        ap.error(f"--notebooks {args.notebooks} is not a folder of lessons")
+    if args.out.resolve() == args.notebooks.resolve() or (args.out.exists() and args.out.samefile(args.notebooks)):
+        ap.error(f"--out {args.out} is the --notebooks folder: the copies would replace the lessons' solutions "
+                 "(--force does not change this); choose another --out")
     args.out.mkdir(parents=True, exist_ok=True)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
     written, skipped = [], []
     for path in sorted(args.notebooks.glob("[0-9]*.ipynb")):
         nb = nbformat.read(path, as_version=4)
@@ -108,6 +117,11 @@ def main(argv=None) -> list[Path]:
         if out.exists() and not args.force:
             print(f"student copy: {out} kept (it holds your answers; --force writes it anew)")
             continue
+        if out.exists():  # --force: the answers it replaces are kept in a timestamped backup
+            backup = args.out / "backups" / stamp / path.name
+            backup.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(out, backup)
+            print(f"student copy: your answers in {out} are kept in {backup}")
         nbformat.write(student_copy(nb), out)
         written.append(out)
         print(f"student copy: {out} ({len(exercises(nb))} exercises, solutions removed)")

@@ -34,6 +34,7 @@ feet-anchored model met the per-frame mean by zig-zagging (net speeds 0.05-1.2 m
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,8 +45,12 @@ from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.rollout import draw_noise
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import Motion
+from course_lib.synthetic.locomotion import GAIT_PARAMS
 
-__all__ = ["OnlineConfig", "OnlineController", "speed_energy", "direction_energy"]
+# The fastest commanded speed the training data holds (m/s): the top of the run's range.
+MAX_SPEED = max(p.speed[1] for p in GAIT_PARAMS.values())
+
+__all__ = ["MAX_SPEED", "OnlineConfig", "OnlineController", "speed_energy", "direction_energy"]
 
 
 @dataclass
@@ -132,6 +137,11 @@ class OnlineController:
         """speed (m/s) >= 0, direction (rad) -> the next batch of frames."""
         if not (math.isfinite(speed) and math.isfinite(direction)) or speed < 0:
             raise ValueError(f"step: need a finite speed >= 0 and a finite direction, got {speed!r}, {direction!r}")
+        if speed > MAX_SPEED:  # beyond every gait of the training data: the model has never seen it
+            warnings.warn(f"step: speed {speed:g} m/s is outside the training data's 0..{MAX_SPEED:g} m/s "
+                          f"(course_lib.synthetic.GAIT_PARAMS, the run's fastest); clamped to {MAX_SPEED:g}",
+                          stacklevel=2)
+            speed = MAX_SPEED
         cfg, prior = self.config, self.prior
         # a change: the command moved by more than the retry's tolerance from the one at the last change (a joystick's
         # small drift is not one)

@@ -29,7 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from course_lib.motion import CONTACT_HEIGHT, Motion
+from course_lib.motion import CONTACT_HEIGHT, Motion, check_fps
 from course_lib.skeleton import Skeleton
 
 __all__ = [
@@ -57,19 +57,35 @@ def _to_numpy(x, name: str) -> np.ndarray:
         raise ValueError(f"{name}: expected a numeric array or a list of Motions, got {type(x).__name__}") from err
 
 
-def _clips(x, name: str, skeleton: Skeleton | None = None, fps: float | None = None
+def _clips(x, name: str, skeleton: Skeleton | None = None, fps: float | None = None, min_frames: int = 1
            ) -> tuple[list[np.ndarray], Skeleton, float | None]:
-    """Motions or (N, T, J, 3) / (T, J, 3) positions -> list of (T, J, 3) arrays, skeleton, fps."""
+    """Motions or (N, T, J, 3) / (T, J, 3) positions -> list of (T, J, 3) arrays, skeleton, fps.
+
+    Motions carry their own frame rate and skeleton: all must share them (the message names the first clip
+    that differs), and an ``fps`` or ``skeleton`` argument that disagrees with them is refused, not used.
+    Every clip needs at least ``min_frames`` frames (each measure states its own)."""
     if isinstance(x, Motion):
         x = [x]
     if isinstance(x, (list, tuple)) and x and all(isinstance(m, Motion) for m in x):
-        skel = skeleton or x[0].skeleton
-        rates = {float(m.fps) for m in x}
-        if len(rates) > 1:
-            raise ValueError(f"{name}: Motions have different frame rates {sorted(rates)}; resample them first")
-        fps = fps if fps is not None else rates.pop()
+        skel, rate = x[0].skeleton, float(x[0].fps)
+        for i, m in enumerate(x):
+            if float(m.fps) != rate:
+                raise ValueError(f"{name}: clip {i} is at {m.fps:g} fps and clip 0 at {rate:g} fps; resample them "
+                                 "to one rate first (Motion.resample)")
+            if m.skeleton.names != skel.names:
+                raise ValueError(f"{name}: clip {i} has {m.skeleton.num_joints} joints and clip 0 has "
+                                 f"{skel.num_joints} (or other joint names); measure clips of one skeleton together")
+        if fps is not None and float(fps) != rate:
+            raise ValueError(f"{name}: fps={fps!r} given, but the Motions are at {rate:g} fps; leave fps out "
+                             "(a Motion's own rate is used) or resample the Motions")
+        if skeleton is not None and skeleton.names != skel.names:
+            raise ValueError(f"{name}: the skeleton given has {skeleton.num_joints} joints, the Motions' "
+                             f"{skel.num_joints}; leave skeleton out (a Motion's own is used)")
+        fps = rate
         clips = [m.positions() for m in x]
     else:
+        if isinstance(x, (list, tuple)) and any(isinstance(m, Motion) for m in x):
+            raise ValueError(f"{name}: a list mixing Motions and arrays; give Motions or one (N, T, J, 3) array")
         arr = _to_numpy(x, name)
         if arr.ndim == 3:
             arr = arr[None]
@@ -77,11 +93,15 @@ def _clips(x, name: str, skeleton: Skeleton | None = None, fps: float | None = N
             raise ValueError(f"{name}: positions must be (N, T, J, 3) or (T, J, 3), got shape {arr.shape}")
         skel = skeleton or Skeleton.canonical()
         clips = list(arr)
+        if fps is not None:
+            fps = check_fps(fps, name)
     if not clips:
         raise ValueError(f"{name}: no clips given")
-    for c in clips:
+    for i, c in enumerate(clips):
         if c.shape[1] != skel.num_joints:
-            raise ValueError(f"{name}: expected {skel.num_joints} joints (skeleton), got {c.shape[1]}")
+            raise ValueError(f"{name}: expected {skel.num_joints} joints (skeleton), got {c.shape[1]} in clip {i}")
+        if len(c) < min_frames:
+            raise ValueError(f"{name}: clip {i} has {len(c)} frames; this measure needs at least {min_frames}")
         _finite(c, name)
     return clips, skel, fps
 
@@ -105,9 +125,9 @@ def _pair(pred, target, skeleton: Skeleton | None) -> tuple[np.ndarray, np.ndarr
 
 
 def _need_fps(fps, name: str) -> float:
-    if fps is None or not float(fps) > 0:
-        raise ValueError(f"{name}: give fps (frames per second, > 0) for position arrays, got {fps}")
-    return float(fps)
+    if fps is None:
+        raise ValueError(f"{name}: give fps (frames per second, > 0) for position arrays")
+    return check_fps(fps, name)
 
 
 def _frames(frames, T: int) -> list[int]:
@@ -185,7 +205,7 @@ def foot_skate(motions, fps: float | None = None, skeleton: Skeleton | None = No
     (0.0 if no foot ever touches the floor).  Unlike `Motion.contacts` there is no
     speed gate: a sliding foot must count.
     """
-    clips, skel, fps = _clips(motions, "motions", skeleton, fps)
+    clips, skel, fps = _clips(motions, "foot_skate", skeleton, fps, min_frames=2)
     fps = _need_fps(fps, "foot_skate")
     idx = [skel.index(n) for n in joints]
     speeds = []
@@ -205,7 +225,7 @@ def ground_penetration(motions, skeleton: Skeleton | None = None) -> float:
     motions: list of Motions or (N, T, J, 3) -> float.  Per frame
     depth_t = max(0, -min_j y_{t,j}); joints above the floor contribute 0.
     """
-    clips, _, _ = _clips(motions, "motions", skeleton)
+    clips, _, _ = _clips(motions, "ground_penetration", skeleton)
     depth = np.concatenate([np.maximum(0.0, -c[..., 1].min(-1)) for c in clips])
     return float(depth.mean())
 
@@ -216,10 +236,8 @@ def jitter(motions, fps: float | None = None, skeleton: Skeleton | None = None) 
     motions: list of Motions or (N, T, J, 3) (give fps) -> float.  The jerk is the third
     finite difference times fps^3, so the value depends on the frame rate: compare at equal fps.
     """
-    clips, _, fps = _clips(motions, "motions", skeleton, fps)
+    clips, _, fps = _clips(motions, "jitter", skeleton, fps, min_frames=4)  # a third difference needs 4 frames
     fps = _need_fps(fps, "jitter")
-    if min(len(c) for c in clips) < 4:
-        raise ValueError("jitter: clips need at least 4 frames for a third difference")
     jerk = np.concatenate([np.linalg.norm(np.diff(c, n=3, axis=0), axis=-1).ravel() for c in clips])
     return float(jerk.mean() * fps**3)
 
@@ -231,10 +249,8 @@ def root_jerk_split(motions, fps: float | None = None, skeleton: Skeleton | None
     is not the previous frame's; a jerk sample (frames k..k+3) is near one when frame k+1 or k+2 lies within
     ``window`` frames of a change.  Mocap's root moves smoothly through its changes of support; a model that
     places its root by a foot jumps there (lesson 03)."""
-    clips, skel, fps = _clips(motions, "motions", skeleton, fps)
+    clips, skel, fps = _clips(motions, "root_jerk_split", skeleton, fps, min_frames=4)
     fps = _need_fps(fps, "root_jerk_split")
-    if min(len(c) for c in clips) < 4:
-        raise ValueError("root_jerk_split: clips need at least 4 frames for a third difference")
     if int(window) != window or window < 0:
         raise ValueError(f"root_jerk_split: window must be a whole number of frames >= 0, got {window!r}")
     toes, w = [skel.index("LeftToeBase"), skel.index("RightToeBase")], int(window)

@@ -493,7 +493,7 @@ def train_control(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS) -> 
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> None:
     """Store the results as the manifest's "control" entry (no checkpoint file of its own)."""
-    from course_lib.training import _update_manifest
+    from course_lib.manifest import update_manifest as _update_manifest
 
     _update_manifest(checkpoints / "MANIFEST.json", "control",
                      {"command": COMMAND, "uses": ["gmm_rnn.pt"], "results": results})

@@ -591,7 +591,7 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
     if not only:
         model, hist, ft = train_rnn(ds, spec, seed, progress=progress)
         print(f"GMM-RNN: {hist}", file=sys.stderr)
-        ds.save_stats(_stats_path(checkpoints))
+        ds.save_stats(_stats_path(checkpoints), command=COMMAND)
         save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=COMMAND, overwrite=True, metrics={
             **common, **rounded({"seconds": hist.seconds, "steps": hist.num_steps, "final_nll": hist.final("loss", 50),
                                   "finetune_seconds": ft.seconds, "finetune_steps": ft.num_steps,

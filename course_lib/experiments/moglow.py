@@ -181,8 +181,11 @@ def stats_file(checkpoints: Path = CHECKPOINTS) -> Path:
 
 def save_stats(data: MoGlowData, checkpoints: Path = CHECKPOINTS) -> Path:
     from course_lib.datasets import write_npz
+    from course_lib.manifest import record_file
 
-    return write_npz({"mean": data.stats[0], "std": data.stats[1]}, stats_file(checkpoints), overwrite=True)
+    path = write_npz({"mean": data.stats[0], "std": data.stats[1]}, stats_file(checkpoints), overwrite=True)
+    record_file(path, command=COMMAND)
+    return path
 
 
 # ----------------------------------------------------------------------------- measures

@@ -551,7 +551,7 @@ def train_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool =
                    "test_clips": len(test_ds), "data_seed": spec.seed, "train_seed": seed}
         save_checkpoint(model, config, checkpoints / f"{name}.pt", command=COMMAND, metrics=metrics, overwrite=True)
         print(f"{name}: {hist}", file=sys.stderr)
-    train_ds.save_stats(checkpoints / "vae_lstm_stats.npz")
+    train_ds.save_stats(checkpoints / "vae_lstm_stats.npz", command=COMMAND)
     out = eval_vae_lstm(spec, seed, progress, checkpoints)
     out["train_seconds"] = timings
     out["total_seconds"] = round(time.perf_counter() - t0, 1)
