@@ -41,6 +41,7 @@ import re
 import tempfile
 import warnings
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -53,18 +54,18 @@ from course_lib.skeleton import CANONICAL_JOINTS, CANONICAL_PARENTS, Skeleton, f
 
 CMU_SCALE = 0.056444  # CMU BVH length unit -> metres
 SITE_DIR = Path(__file__).resolve().parents[1] / "site"  # the course site `make course` builds, beside its lessons
-CMU_SAMPLE = Path("shared") / "data" / "cmu_07_01_walk.bvh"  # the course's real clip, beside the repository
+CMU_SAMPLE = "cmu_07_01_walk.bvh"  # the course's real clip, shipped in course_lib/data/ (data card: README.md there)
 
 
-def cmu_sample_path(start: str | os.PathLike | None = None) -> Path:
-    """Path of the course's real CMU walk (``../shared/data/cmu_07_01_walk.bvh``), looked for in
-    `start` (default: the current folder), the folder holding course_lib, and every folder above them.
-    The path is resolved (symbolic links such as a linked ``shared/`` followed)."""
-    for origin in (Path(start or Path.cwd()).resolve(), Path(__file__).resolve().parent):
-        for folder in (origin, *origin.parents):
-            if (folder / CMU_SAMPLE).is_file():
-                return (folder / CMU_SAMPLE).resolve()
-    raise FileNotFoundError(f"{CMU_SAMPLE} not found above {Path(start or Path.cwd())} or {Path(__file__).parent}")
+def cmu_sample_path() -> Path:
+    """Path of the course's real CMU walk, ``course_lib/data/cmu_07_01_walk.bvh``: package data, so it is
+    there in a plain clone and in a non-editable install alike (its source and terms: course_lib/data/README.md)."""
+    path = Path(str(resources.files("course_lib") / "data" / CMU_SAMPLE))
+    if not path.is_file():
+        raise FileNotFoundError(f"the packaged CMU clip {path} is missing (a broken install of course_lib?)")
+    return path
+
+
 _POSITION = ("Xposition", "Yposition", "Zposition")
 _ROTATION = ("Xrotation", "Yrotation", "Zrotation")
 _NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")

@@ -36,6 +36,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from course_lib.outputs import check_outputs
+
 GT_COLOR = (0.12, 0.47, 0.71)  # ground truth: matplotlib's tab:blue
 GEN_COLOR = (1.0, 0.50, 0.05)  # generated: tab:orange
 DEFAULT_COLORS = (GT_COLOR, GEN_COLOR, (0.17, 0.63, 0.17), (0.84, 0.15, 0.16), (0.58, 0.40, 0.74))
@@ -544,28 +546,32 @@ def render_frames(x, stride: int = 1, parents=None, *, size=(352, 640), view="th
 
 
 def render_gif(x, path=None, fps: float | None = None, stride: int = 1, parents=None, *, size=(240, 320),
-               view="three_quarter", follow: bool = False, **kw) -> bytes:
+               view="three_quarter", follow: bool = False, overwrite: bool = False, **kw) -> bytes:
     """Like `render_mp4`, as GIF bytes: only where a video player cannot be used (a GIF has no controls)."""
+    _check_video_path(path, overwrite)
     images, clip_fps = render_frames(x, stride, parents, size=size, view=view, follow=follow, **kw)
-    return _write_gif(images, fps or clip_fps, path)
+    return _write_gif(images, fps or clip_fps, path, overwrite=overwrite)
 
 
 def render_mp4(x, path=None, fps: float | None = None, stride: int = 1, parents=None, *, size=(352, 640),
-               view="three_quarter", **kw) -> bytes:
+               view="three_quarter", overwrite: bool = False, **kw) -> bytes:
     """An H.264 MP4 of a Motion / positions (T, J, 3), or of a list side by side -> bytes (`video_html` plays it).
 
-    kw: those of `render_frames` (labels, colors, trajectory, gap, follow=True, progress, style).  Writes `path` too.
+    kw: those of `render_frames` (labels, colors, trajectory, gap, follow=True, progress, style).  Writes `path` too
+    (an existing file only with overwrite=True).
     """
+    _check_video_path(path, overwrite)
     images, clip_fps = render_frames(x, stride, parents, size=size, view=view, **kw)
-    return write_mp4(images, fps or clip_fps, path)
+    return write_mp4(images, fps or clip_fps, path, overwrite=overwrite)
 
 
 def render_rows_mp4(rows, labels=None, colors=None, stride: int = 1, parents=None, path=None, *, size=(240, 640),
-                    fps: float | None = None, **kw) -> bytes:
+                    fps: float | None = None, overwrite: bool = False, **kw) -> bytes:
     """Rows of motions side by side, stacked into one H.264 MP4 -> bytes; `size` is one row's (H, W).
 
     rows: lists of Motions / positions (T, J, 3); labels, colors: lists of lists like rows (colours default to
     the same per column).  Every row is cut to the shortest clip.  kw: those of `render_frames`."""
+    _check_video_path(path, overwrite)
     labels = labels or [None] * len(rows)
     colors = colors or [None] * len(rows)
     if not (len(rows) == len(labels) == len(colors)) or not len(rows):
@@ -573,7 +579,8 @@ def render_rows_mp4(rows, labels=None, colors=None, stride: int = 1, parents=Non
     videos = [render_frames(list(r), stride, parents, size=size, labels=lab, colors=col, **kw)
               for r, lab, col in zip(rows, labels, colors, strict=True)]
     n = min(len(v) for v, _ in videos)
-    return write_mp4(np.concatenate([v[:n] for v, _ in videos], axis=1), fps or videos[0][1], path)
+    return write_mp4(np.concatenate([v[:n] for v, _ in videos], axis=1), fps or videos[0][1], path,
+                     overwrite=overwrite)
 
 
 @contextlib.contextmanager
@@ -584,10 +591,18 @@ def _ffmpeg_quietly():
         yield
 
 
-def write_mp4(images, fps: float, path=None, quality: float = 5.0) -> bytes:
+def _check_video_path(path, overwrite: bool) -> None:
+    """A video is written to ``path`` only if it is new or overwrite=True: checked before rendering starts."""
+    if path is not None:
+        check_outputs([path], overwrite=overwrite, who="render")
+
+
+def write_mp4(images, fps: float, path=None, quality: float = 5.0, *, overwrite: bool = False) -> bytes:
     """(F, H, W, 3) uint8 frames -> H.264 MP4 bytes (yuv420p, faststart: plays in every browser).
 
-    Frames are padded with white to multiples of 16 pixels (the codec's macro blocks), never rescaled."""
+    Frames are padded with white to multiples of 16 pixels (the codec's macro blocks), never rescaled.  Writes
+    `path` too when given (an existing file only with overwrite=True)."""
+    _check_video_path(path, overwrite)
     import os
     import tempfile
 
@@ -655,9 +670,10 @@ def video_html(data: bytes, width: int | None = None, loop: bool = True):
                 "Your browser cannot play this MP4 (H.264) video.</video>")
 
 
-def _write_gif(images, fps: float, path=None) -> bytes:
+def _write_gif(images, fps: float, path=None, *, overwrite: bool = False) -> bytes:
     import imageio.v3 as iio
 
+    _check_video_path(path, overwrite)
     data = iio.imwrite("<bytes>", np.stack(images), extension=".gif", duration=1000.0 / fps, loop=0)
     if path is not None:
         with open(path, "wb") as fh:
@@ -822,17 +838,19 @@ def stick_frames(x, parents=None, view: str = "side", size=(200, 200), stride: i
 
 
 def stick_gif(x, path=None, parents=None, view: str = "side", size=(200, 200), fps: float | None = None,
-              stride: int = 1, **kw) -> bytes:
+              stride: int = 1, overwrite: bool = False, **kw) -> bytes:
     """An animated stick figure -> GIF bytes (only where no video player can be used); writes `path` when given."""
+    _check_video_path(path, overwrite)
     images, clip_fps = stick_frames(x, parents, view, size, stride, **kw)
-    return _write_gif(images, fps or clip_fps, path)
+    return _write_gif(images, fps or clip_fps, path, overwrite=overwrite)
 
 
 def stick_mp4(x, path=None, parents=None, view: str = "side", size=(240, 240), fps: float | None = None,
-              stride: int = 1, **kw) -> bytes:
+              stride: int = 1, overwrite: bool = False, **kw) -> bytes:
     """An animated stick figure -> H.264 MP4 bytes (`video_html` plays it); writes `path` when given."""
+    _check_video_path(path, overwrite)
     images, clip_fps = stick_frames(x, parents, view, size, stride, **kw)
-    return write_mp4(images, fps or clip_fps, path)
+    return write_mp4(images, fps or clip_fps, path, overwrite=overwrite)
 
 
 # ----------------------------------------------------------------------------- display

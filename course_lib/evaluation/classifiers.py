@@ -158,6 +158,12 @@ def motions_to_batch(motions: list[Motion], config: ClassifierConfig, length: in
     L = length (default: min(config.window, shortest clip))."""
     if not motions or not all(isinstance(m, Motion) for m in motions):
         raise ValueError("motions_to_batch: expected a non-empty list of Motions")
+    names = motions[0].skeleton.names
+    for i, m in enumerate(motions):
+        if m.skeleton.names != names:
+            raise ValueError(f"motions_to_batch: clip {i} has {m.skeleton.num_joints} joints and clip 0 has "
+                             f"{len(names)} (or other joint names); the classifiers read the canonical "
+                             "21-joint skeleton (map a CMU clip with bvh.map_to_canonical)")
     feats = [encode_quaternion_root(m if m.fps == config.fps else m.resample(config.fps)) for m in motions]
     shortest = min(len(f) for f in feats)
     L = length or min(config.window, shortest)

@@ -106,9 +106,10 @@ def _clips(x, name: str, skeleton: Skeleton | None = None, fps: float | None = N
     return clips, skel, fps
 
 
-def _batch(x, name: str, skeleton: Skeleton | None = None) -> tuple[np.ndarray, Skeleton]:
-    """Like `_clips` but all clips must have the same length -> (N, T, J, 3)."""
-    clips, skel, _ = _clips(x, name, skeleton)
+def _batch(x, name: str, skeleton: Skeleton | None = None, fps: float | None = None, min_frames: int = 1
+           ) -> tuple[np.ndarray, Skeleton]:
+    """Like `_clips` but all clips must have the same length -> (N, T, J, 3), skeleton."""
+    clips, skel, _ = _clips(x, name, skeleton, fps, min_frames)
     lengths = sorted({len(c) for c in clips})
     if len(lengths) > 1:
         raise ValueError(f"{name}: clips have different lengths {lengths}; crop them to a common length")
@@ -276,8 +277,8 @@ def bone_length_violation(motions, skeleton: Skeleton | None = None) -> float:
     from joint j to its parent on frame t; zero-length bones are skipped.
     """
     if isinstance(motions, (list, tuple)) and motions and all(isinstance(m, Motion) for m in motions):
-        return max(bone_length_violation([m.positions()], m.skeleton) for m in motions)
-    clips, skel, _ = _clips(motions, "motions", skeleton)
+        return max(bone_length_violation([m.positions()], m.skeleton) for m in motions)  # each with its own bones
+    clips, skel, _ = _clips(motions, "bone_length_violation", skeleton)
     child = np.array([j for j in range(1, skel.num_joints)])
     parent = np.array([skel.parents[j] for j in child])
     rest = skel.bone_lengths()[child]
@@ -306,10 +307,8 @@ def speed_error(positions, target_speed, fps: float | None = None, skeleton: Ske
     positions: (N, T, J, 3) or Motions; target_speed: (N, T), (T,) or a scalar, m/s -> float.
     Root speed by central differences of the root's (x, z), times fps.
     """
-    x, skel = _batch(positions, "positions", skeleton)
+    x, skel = _batch(positions, "speed_error", skeleton, fps, min_frames=2)  # checks fps against Motions' own
     fps = _need_fps(fps if fps is not None else _motion_fps(positions), "speed_error")
-    if x.shape[1] < 2:
-        raise ValueError("speed_error: clips need at least 2 frames")
     root = x[..., 0, :][..., [0, 2]]  # (N, T, 2)
     speed = np.linalg.norm(np.gradient(root, axis=1), axis=-1) * fps  # (N, T)
     return float(np.abs(speed - _per_frame_target(target_speed, speed.shape, "target_speed")).mean())
