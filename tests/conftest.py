@@ -1,4 +1,4 @@
-"""Shared pytest fixtures: where the repository, ../shared and the real CMU clip are.
+"""Shared pytest fixtures: where the repository and the real CMU clip (package data) are.
 
 Also defaults the headless-rendering variables (only where unset) so that
 `pytest tests/test_render.py` works without an X server, as under `make test`.
@@ -39,15 +39,6 @@ def load_tool(name: str):
     return load_module(REPO_ROOT / "tools" / f"{name}.py")
 
 
-def find_shared_dir(start: Path = REPO_ROOT) -> Path:
-    """The `shared/` folder beside the repository (../shared), or beside one of its parents."""
-    for folder in [start, *start.parents]:
-        candidate = folder.parent / "shared"
-        if (candidate / "data").is_dir():
-            return candidate
-    raise FileNotFoundError(f"no shared/data folder beside {start} or any parent (expected {start.parent / 'shared'})")
-
-
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     """The repository's root folder (holds pyproject.toml)."""
@@ -55,18 +46,9 @@ def repo_root() -> Path:
 
 
 @pytest.fixture(scope="session")
-def shared_dir() -> Path:
-    """../shared: DESIGN.md, papers/, data/ (fails with a clear message where it is missing)."""
-    try:
-        return find_shared_dir()
-    except FileNotFoundError as err:
-        pytest.fail(str(err))
-
-
-@pytest.fixture(scope="session")
-def cmu_bvh_path(shared_dir: Path) -> Path:
-    """The real CMU clip ../shared/data/cmu_07_01_walk.bvh (120 fps, 31 joints)."""
-    path = shared_dir / "data" / "cmu_07_01_walk.bvh"
+def cmu_bvh_path() -> Path:
+    """The real CMU clip course_lib/data/cmu_07_01_walk.bvh, package data in this repository (120 fps, 31 joints)."""
+    path = REPO_ROOT / "course_lib" / "data" / "cmu_07_01_walk.bvh"
     if not path.is_file():
         pytest.fail(f"the CMU clip {path} is missing")
     return path

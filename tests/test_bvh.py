@@ -37,20 +37,26 @@ def cmu(cmu_bvh_path) -> Motion:
     return read_bvh(cmu_bvh_path, scale=CMU_SCALE)
 
 
-def test_cmu_sample_path_finds_the_shared_clip(cmu_bvh_path, tmp_path):
-    assert cmu_sample_path() == cmu_bvh_path.resolve()
-    # from a folder outside the repository it falls back to the package's own location (or finds another copy
-    # of shared/ above that folder, as on machines that link one into /tmp): either way the same clip
-    found = cmu_sample_path(tmp_path)
-    assert found.name == cmu_bvh_path.name and found.read_bytes() == cmu_bvh_path.read_bytes()
+def test_cmu_sample_path_is_the_packaged_clip(cmu_bvh_path, tmp_path, monkeypatch):
+    """The clip is package data inside the imported course_lib, found from any working folder."""
+    import course_lib
+
+    found = cmu_sample_path()
+    assert found == Path(course_lib.__file__).resolve().parent / "data" / "cmu_07_01_walk.bvh"
+    assert found.is_file() and found.read_bytes() == cmu_bvh_path.read_bytes()
+    monkeypatch.chdir(tmp_path)  # a folder with nothing around it: the same file
+    assert cmu_sample_path() == found
+    motion = read_bvh(found, scale=CMU_SCALE)
+    assert motion.skeleton.num_joints == 31 and motion.fps == 120.0
 
 
-def test_cmu_sample_path_through_a_symlinked_shared_folder(cmu_bvh_path, tmp_path):
-    """A checkout beside a *linked* shared/ (as on some machines) finds the clip, as a resolved path."""
-    (tmp_path / "shared").symlink_to(cmu_bvh_path.parent.parent, target_is_directory=True)
-    (tmp_path / "repo").mkdir()
-    found = cmu_sample_path(tmp_path / "repo")
-    assert found == cmu_bvh_path.resolve() and found.is_file()
+def test_cmu_sample_has_a_data_card(cmu_bvh_path):
+    """Beside the clip: its source, terms of use and numbers (frames counted from the file)."""
+    card = (cmu_bvh_path.parent / "README.md").read_text()
+    frames = int(next(line for line in cmu_bvh_path.read_text().splitlines() if line.startswith("Frames:")).split()[1])
+    for fact in ("mocap.cs.cmu.edu", "subject 7", "NSF EIA-0196217", "120 fps", "31", "ZYX", "0.056444",
+                 f"{frames} (`Frames: {frames}`)", "cmu_sample_path()"):
+        assert fact in card, fact
 
 
 def _pos(m: Motion, name: str) -> np.ndarray:
