@@ -44,7 +44,10 @@ def main(argv=None) -> None:
     if args.fps is not None and not 0 < args.fps < math.inf:
         ap.error(f"--fps must be a positive finite number, got {args.fps}")
     t0 = time.time()
-    motions = D.load_motions(args.input)
+    try:  # a file that is not a motion set is refused with its reason, not a traceback
+        motions = D.load_motions(args.input)
+    except ValueError as err:
+        ap.error(f"--input: {err}")
     if args.clips is not None and args.clips > len(motions):
         ap.error(f"--clips {args.clips}: {args.input} holds only {len(motions)} clips")
     clean = D.resample_clips(motions[:args.clips], args.fps)

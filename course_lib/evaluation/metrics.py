@@ -66,7 +66,9 @@ def _clips(x, name: str, skeleton: Skeleton | None = None, fps: float | None = N
     Every clip needs at least ``min_frames`` frames (each measure states its own)."""
     if isinstance(x, Motion):
         x = [x]
-    if isinstance(x, (list, tuple)) and x and all(isinstance(m, Motion) for m in x):
+    if isinstance(x, (list, tuple)) and not x:
+        raise ValueError(f"{name}: no clips given (an empty list)")
+    if isinstance(x, (list, tuple)) and all(isinstance(m, Motion) for m in x):
         skel, rate = x[0].skeleton, float(x[0].fps)
         for i, m in enumerate(x):
             if float(m.fps) != rate:
