@@ -649,6 +649,10 @@ def write_dataset(motions: list[Motion], path, *, card: dict, meta: dict | None 
     same data written to another path has the same bytes).  All three files are checked before any is
     written (`outputs.check_outputs`): none may be in `inputs`, none may exist unless overwrite=True."""
     check_outputs(dataset_paths(path), overwrite=overwrite, inputs=inputs, who="write_dataset")
+    try:  # the card is checked before anything is written: no data file without its card
+        _card_markdown(card)
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"write_dataset: the card lacks {err}; make it with datasets.data_card(...)") from None
     path = save_motions(motions, path, meta=meta, overwrite=overwrite)
     write_data_card(card, path, overwrite=True)
     return path
