@@ -459,17 +459,17 @@ def render_frame(x, parents=None, frame: int = 0, *, size=(352, 640), view="thre
 
 
 def render_still(x, path=None, frame: int = 0, parents=None, *, size=(352, 640), view="three_quarter",
-                 color=GT_COLOR, trajectory: bool = True, **style) -> np.ndarray:
+                 color=GT_COLOR, trajectory: bool = True, overwrite: bool = False, **style) -> np.ndarray:
     """Like `render_frame`, with the root trajectory by default; writes a PNG when path is given -> (H, W, 3)."""
     img = render_frame(x, parents, frame, size=size, view=view, color=color, trajectory=trajectory, **style)
     if path is not None:
-        import imageio.v3 as iio
-        iio.imwrite(path, img)
+        _write_png(img, path, overwrite)
     return img
 
 
 def render_side_by_side(items, labels=None, colors=None, parents=None, frame: int = 0, path=None, *,
-                        size=(360, 720), view="three_quarter", gap: float = 0.4, **style) -> np.ndarray:
+                        size=(360, 720), view="three_quarter", gap: float = 0.4, overwrite: bool = False,
+                        **style) -> np.ndarray:
     """Several Motions / position arrays at one frame, translated apart -> (H, W, 3) uint8.
 
     Each is moved so its root is over the origin at `frame`, then spread along the
@@ -488,13 +488,12 @@ def render_side_by_side(items, labels=None, colors=None, parents=None, frame: in
     finally:
         scene.close()
     if path is not None:
-        import imageio.v3 as iio
-        iio.imwrite(path, img)
+        _write_png(img, path, overwrite)
     return img
 
 
 def render_keyframes(x, frames, parents=None, *, lines=(), path=None, size=(360, 720), view="three_quarter",
-                     color=GT_COLOR, trajectory: bool = True, **style) -> np.ndarray:
+                     color=GT_COLOR, trajectory: bool = True, overwrite: bool = False, **style) -> np.ndarray:
     """Several poses of one Motion / positions (T, J, 3), each where it is in the world (Fig. 8 of Wang, Chai et
     al.), the root trajectory on the floor, and ``lines``: floor polylines as ((N, 2) (x, z) or (N, 3), colour)
     pairs -> (H, W, 3) uint8; writes a PNG when path is given."""
@@ -512,8 +511,7 @@ def render_keyframes(x, frames, parents=None, *, lines=(), path=None, size=(360,
     finally:
         scene.close()
     if path is not None:
-        import imageio.v3 as iio
-        iio.imwrite(path, img)
+        _write_png(img, path, overwrite)
     return img
 
 
@@ -589,6 +587,14 @@ def _ffmpeg_quietly():
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
         yield
+
+
+def _write_png(img: np.ndarray, path, overwrite: bool) -> None:
+    """A picture to ``path``: a new file, or an existing one only with overwrite=True."""
+    import imageio.v3 as iio
+
+    check_outputs([path], overwrite=overwrite, who="render")
+    iio.imwrite(path, img)
 
 
 def _check_video_path(path, overwrite: bool) -> None:

@@ -911,6 +911,14 @@ def _stick_over(tmp):
     return "written"
 
 
+def _still_over(tmp):
+    from course_lib import render
+
+    _write(tmp / "frame.png")
+    render.render_still(_walk(4), tmp / "frame.png", size=(32, 32))
+    return "written"
+
+
 def _stats_tampered(tmp):
     from course_lib.datasets import WindowDataset, load_stats
 
@@ -1029,6 +1037,7 @@ def _writer_cases() -> list[Case]:
         Case("writers", "write_mp4 over an existing file", _video_over("mp4"), "FileExistsError", "overwrite=True"),
         Case("writers", "a GIF over an existing file", _video_over("gif"), "FileExistsError", "overwrite=True"),
         Case("writers", "stick_mp4 over an existing file", _stick_over, "FileExistsError", "overwrite=True"),
+        Case("writers", "render_still over an existing picture", _still_over, "FileExistsError", "overwrite=True"),
         Case("verified inputs", "normalisation stats with a shifted mean and tripled std", _stats_tampered,
              "ValueError", "sha256 mismatch"),
         Case("verified inputs", "the shipped checkpoints and stats", _stats_shipped, "handled", "manifest"),
