@@ -102,6 +102,11 @@ def lesson_info(notebook: Path) -> dict:
             "prerequisites": _field(head, "Prerequisites"), "time": _field(head, "Time"), "paper": verdicts}
 
 
+def extra_pages() -> list[Path]:
+    """The site's pages beyond the lessons (tools/site/pages/*.md: troubleshooting, ...), in name order."""
+    return sorted((CONF_DIR / "pages").glob("*.md"))
+
+
 def landing_page(rows: list[dict], mode: str) -> str:
     """index.md (MyST) for the given lessons: a hidden toctree for the navigation, one section per lesson."""
     out = ["# Data-driven human motion synthesis", "",
@@ -112,7 +117,7 @@ def landing_page(rows: list[dict], mode: str) -> str:
            f"(`COURSE_MODE={mode}`); the notebooks themselves are in `notebooks/`, the student copies "
            "with the exercises to solve come from `make student`. Search is at the top left; it works offline.",
            "", "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
-    out += [r["name"] for r in rows] + ["```", ""]
+    out += [r["name"] for r in rows] + [page.stem for page in extra_pages()] + ["```", ""]
     for r in rows:
         out += [f"## {r['title']}", "", f"{{doc}}`Open the lesson <{r['name']}>` (`{r['name']}.ipynb`)", ""]
         out += [f"**Prerequisites:** {r['prerequisites'] or '(not stated in the lesson)'}", "",
@@ -160,6 +165,8 @@ def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
     for nb in notebooks:
         shutil.copy2(nb, src / nb.name)
         rows.append(lesson_info(nb))
+    for page in extra_pages():
+        shutil.copy2(page, src / page.name)
     (src / "index.md").write_text(landing_page(rows, mode), encoding="utf-8")
     return rows
 
