@@ -50,7 +50,7 @@ import torch
 
 from course_lib.motion import Motion
 from course_lib.outputs import check_outputs
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[1]
 CHECKPOINTS = ROOT / "checkpoints"

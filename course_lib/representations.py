@@ -40,7 +40,8 @@ Conventions, stated once:
 
 Lesson 03's RNN reads the state features *anchored on the feet* (`anchor_on_feet` / `unanchor_feet`,
 torch, on a given skeleton): the root's floor step replaced by the slip of the lower toe, the root height by
-the lower toe's height.  `local_positions` is the torch FK of the state features in each frame's floor frame.
+the lower toe's height.  `local_positions` is the torch FK of the state features in each frame's floor frame,
+`root_trajectory` their root path (eq. 4) in torch.
 
 Every encoder returns float64; round trips reproduce joint positions to
 float64 precision (tests/test_representations.py checks 1e-4 m).
@@ -391,6 +392,23 @@ def _turn(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
     """(x, z) vectors (..., 2), yaw (...) -> R_y(yaw) v (torch `_to_world`)."""
     c, s = torch.cos(yaw), torch.sin(yaw)
     return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
+
+
+def root_trajectory(features: torch.Tensor, init=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
+    """Raw state features (..., T, D) -> world root positions (..., T, 3) and heading yaw (..., T).
+
+    Wang eq. (4), M_t = M_{t-1} M_t,local, in torch (`integrate_root`); row 0 of the
+    deltas is ignored, frame 0 sits at init = (x0, z0, yaw0).
+    """
+    if not torch.is_tensor(features) or features.ndim < 2 or features.shape[-1] < 6:
+        raise ValueError(f"features must be (..., T, D >= 6), got {getattr(features, 'shape', type(features))}")
+    x0, z0, yaw0 = (float(v) for v in init)
+    dyaw = features[..., 1:, 2]
+    yaw = yaw0 + torch.cat((torch.zeros_like(features[..., :1, 2]), torch.cumsum(dyaw, -1)), -1)  # (..., T)
+    step = _turn(features[..., 1:, 0:2], yaw[..., :-1])  # p_t - p_{t-1} = R_y(yaw_{t-1}) d_t
+    xz = torch.cat((torch.zeros_like(step[..., :1, :]), torch.cumsum(step, -2)), -2)  # (..., T, 2)
+    root = torch.stack((xz[..., 0] + x0, features[..., 3], xz[..., 1] + z0), -1)
+    return root, yaw
 
 
 ANCHOR_RULES = ("lower", "contact")

@@ -9,7 +9,7 @@
 Without --eval-only: data, train every model of the lesson (or those named in --only), save the
 checkpoints and record the results in checkpoints/MANIFEST.json; with it: the results from the
 shipped checkpoints.  Each lesson registers one entry in ``EXPERIMENTS`` (name -> (train_fn,
-eval_fn)), imported only when run.  Nothing runs at import time.
+eval_fn)).  Nothing runs at import time.
 """
 
 from __future__ import annotations
@@ -18,49 +18,17 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
 import torch
+
+from course_lib.experiments import control, gmm_rnn, hvrnn, moglow, vae_lstm
 
 ROOT = Path(__file__).resolve().parent.parent
 CHECKPOINTS = ROOT / "checkpoints"
 
 
-def rounded(d, digits: int = 6):
-    """Results for JSON: floats rounded to ``digits`` decimals inside nested dicts/lists/tuples, keys as str."""
-    if isinstance(d, dict):
-        return {str(k): rounded(v, digits) for k, v in d.items()}
-    if isinstance(d, (list, tuple)):
-        return [rounded(v, digits) for v in d]
-    return round(float(d), digits) if isinstance(d, (float, np.floating)) else d
-
-
-
-# ----------------------------------------------------------------------------- the command line
-
-def _lazy(module: str, name: str):
-    """A function that imports course_lib.<module> only when called (lesson modules import this one)."""
-    def call(**kw):
-        import importlib
-
-        return getattr(importlib.import_module(f"course_lib.{module}"), name)(**kw)
-
-    call.__name__ = name
-    return call
-
-
-EXPERIMENTS = {name: (_lazy(f"experiments.{name}", f"train_{name}"), _lazy(f"experiments.{name}", f"eval_{name}"))
-               for name in ("vae_lstm", "gmm_rnn", "hvrnn", "moglow", "control")}
-
-# Lesson 02's experiment used to live here; these names still resolve (lesson 03's data builds on it).
-_MOVED_TO_VAE_LSTM = ("DataSpec", "generate_clips", "load_clips", "datasets", "DATA_FILE", "FRAMES")
-
-
-def __getattr__(name: str):
-    if name in _MOVED_TO_VAE_LSTM:
-        from course_lib.experiments import vae_lstm
-
-        return getattr(vae_lstm, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+EXPERIMENTS = {name: (getattr(lesson, f"train_{name}"), getattr(lesson, f"eval_{name}"))
+               for name, lesson in (("vae_lstm", vae_lstm), ("gmm_rnn", gmm_rnn), ("hvrnn", hvrnn),
+                                    ("moglow", moglow), ("control", control))}
 
 
 def main(argv=None) -> int:

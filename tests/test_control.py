@@ -82,7 +82,7 @@ def test_contact_energy_zero_for_a_planted_foot_and_positive_when_it_slides():
 
 
 def test_mocap_stance_costs_little_contact_energy(walk):
-    from course_lib.control.design import stance_plane
+    from course_lib.control.energy import stance_plane
     from course_lib.representations import encode_state_features, root_start
 
     raw = torch.from_numpy(encode_state_features(walk))

@@ -307,16 +307,18 @@ def test_must_show_checks_read_the_right_numbers():
                       "T2: VAE-LSTM flat, frame 210 / frame 70"}
 
 
-def test_reproduce_registers_vae_lstm_and_keeps_old_names():
-    """reproduce.py is the registry + CLI; lesson 02's experiment lives in experiments/vae_lstm.py, and the
-    names lesson 03 imports from reproduce still resolve to it."""
-    from course_lib import reproduce
+def test_reproduce_registers_vae_lstm_and_the_corpus_keeps_its_names():
+    """reproduce.py is the registry + CLI and holds no lesson's names; the shared clips live in corpus.py, and
+    lesson 02's notebook still finds them on its experiment module."""
+    from course_lib import corpus, reproduce
     from course_lib.experiments import vae_lstm
 
     train_fn, eval_fn = reproduce.EXPERIMENTS["vae_lstm"]
-    assert (train_fn.__name__, eval_fn.__name__) == ("train_vae_lstm", "eval_vae_lstm")
-    assert reproduce.DataSpec is vae_lstm.DataSpec and reproduce.load_clips is vae_lstm.load_clips
-    assert not hasattr(reproduce, "lesson02_tables")
+    assert (train_fn, eval_fn) == (vae_lstm.train_vae_lstm, vae_lstm.eval_vae_lstm)
+    assert vae_lstm.DataSpec is corpus.DataSpec and vae_lstm.load_clips is corpus.load_clips
+    assert vae_lstm.generate_clips is corpus.generate_clips
+    for name in ("DataSpec", "load_clips", "lesson02_tables", "rounded"):
+        assert not hasattr(reproduce, name), name
 
 
 def test_recipe_sweep_tool_runs_one_variant(tmp_path):

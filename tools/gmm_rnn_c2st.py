@@ -22,7 +22,7 @@ import torch
 
 from course_lib.evaluation import c2st, fid
 from course_lib.experiments import gmm_rnn as X
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 COMMAND = "OMP_NUM_THREADS=1 python tools/gmm_rnn_c2st.py --out tools/gmm_rnn_c2st_results.json"
 

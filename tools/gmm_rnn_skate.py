@@ -115,7 +115,7 @@ def mocap_row(test, spec) -> dict:
 
 def main(argv=None) -> None:
     from course_lib.experiments import gmm_rnn as X
-    from course_lib.reproduce import rounded
+    from course_lib.results import rounded
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True)

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from moglow_zero_control_seeds import stepping_speed  # noqa: E402

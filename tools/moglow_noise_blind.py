@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 COMMAND = "OMP_NUM_THREADS=1 python tools/moglow_noise_blind.py --out tools/moglow_noise_blind_results.json"
 SDS = (0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4)

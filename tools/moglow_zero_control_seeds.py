@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 SEEDS = tuple(range(10))
 

@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def run(smoke: bool = False, out_path: Path | None = None) -> dict:
     from course_lib.experiments import vae_lstm as V
-    from course_lib.reproduce import rounded
+    from course_lib.results import rounded
 
     spec = V.DataSpec(n_clips=30, one_body=True) if smoke else V.DataSpec(one_body=True)
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)

@@ -45,7 +45,7 @@ def scored(model, V, base: dict, test_ds) -> dict:
 
 def run(names, smoke: bool = False, out_path: Path | None = None, seed: int = 0) -> dict:
     from course_lib.experiments import vae_lstm as V
-    from course_lib.reproduce import rounded
+    from course_lib.results import rounded
 
     spec = V.DataSpec(n_clips=30) if smoke else V.DataSpec()
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)

@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
     from course_lib.experiments import vae_lstm as V
-    from course_lib.reproduce import rounded
+    from course_lib.results import rounded
 
     spec = V.DataSpec(n_clips=30) if smoke else V.DataSpec()
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)

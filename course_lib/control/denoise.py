@@ -57,14 +57,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import torch
 
+from course_lib.control.design import default_prior
+from course_lib.control.dropouts import dropped_mask, fill_held
+from course_lib.control.energy import stance_plane
 from course_lib.control.initial_state import estimate_initial_state
 from course_lib.control.kinematics import integrate_root
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
+from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
 from course_lib.control.planting import plant_with_prior
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.spikes import SPIKE_ANGLE, despike, spike_mask
 from course_lib.control.window import WindowEnergy
-from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED, Motion
+from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED, Motion, foot_contacts
+from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 __all__ = ["CONTACT_BITS", "FIRST_FRAME", "HELD_FRAMES", "DenoiseConfig",
            "DenoiseProblem", "cleaned_input", "denoise", "denoise_problem", "spikes_of"]
@@ -144,8 +149,6 @@ class DenoiseProblem:
 
     def motion(self, raw: torch.Tensor, like: Motion) -> Motion:
         """Raw frames (1, T-1, D) -> the Motion (frame 0 the input's)."""
-        from course_lib.representations import decode_state_features
-
         feats = torch.cat((self.c[:, :1], raw), 1)[0].numpy()
         out = decode_state_features(feats, like.skeleton, like.fps, tuple(float(v) for v in self.energy.init))
         return replace(out, action=like.action, style=like.style, subject=like.subject,
@@ -161,8 +164,6 @@ def spikes_of(motion: Motion, config: DenoiseConfig) -> np.ndarray:
     """-> (T, J) bool, the input's spiked joints (spikes.py) as `denoise` sees them: tested on the frames that are
     not dropped (held frames repeat their source exactly and are interpolated anyway, if config.held_frames is
     "fill"); all False if config.spike_angle is None."""
-    from course_lib.control.dropouts import dropped_mask
-
     if config.spike_angle is None:
         return np.zeros(motion.rotations.shape[:2], bool)
     if not (np.isfinite(config.spike_angle) and config.spike_angle > 0):
@@ -174,8 +175,6 @@ def spikes_of(motion: Motion, config: DenoiseConfig) -> np.ndarray:
 def cleaned_input(motion: Motion, config: DenoiseConfig, spikes: np.ndarray) -> Motion:
     """The input with its dropped frames (if config.held_frames is "fill") and its spiked joints interpolated
     between good frames, in one pass (a spike next to a dropped frame is not used as an end of either)."""
-    from course_lib.control.dropouts import dropped_mask, fill_held
-
     if config.held_frames != "fill":
         return despike(motion, spikes) if spikes.any() else motion
     dropped = dropped_mask(motion)
@@ -197,9 +196,6 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
 
     first: the motion whose frame 0 (kept, not a variable), root start (x0, z0, yaw0) and first two frames (for
     the eq. 26 state) the filtered motion starts from; same length; None: the input's, its spikes interpolated."""
-    from course_lib.control.design import default_prior, stance_plane
-    from course_lib.representations import encode_state_features, root_start
-
     if not isinstance(motion, Motion):
         raise ValueError(f"denoise: motion must be a Motion, got {type(motion).__name__}")
     config = config or DenoiseConfig()
@@ -230,8 +226,6 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
     c_root = torch.from_numpy(motion.root_positions[1:])[None]  # (1, T-1, 3)
     problem = DenoiseProblem(prior, c, c_root, None, c[:, 1:, prior.contact_cols], state, config)
     if config.held_frames == "fill":
-        from course_lib.control.dropouts import dropped_mask
-
         problem.weight = torch.from_numpy(~dropped_mask(motion)[1:]).double()[None, :, None]
     if spikes.any():
         problem.angle_weight = _angle_weight(spikes)
@@ -246,8 +240,6 @@ def denoise_problem(motion: Motion, prior: RnnPrior | None = None, config: Denoi
 
 def _stance_bits(motion: Motion, speed: float) -> torch.Tensor:
     """-> the motion's contact bits of frames 1..T-1 (1, T-1, 2) at the stance speed threshold ``speed``."""
-    from course_lib.motion import foot_contacts
-
     bits = foot_contacts(motion.positions(), motion.skeleton, motion.fps, speed=speed)
     return torch.from_numpy(bits[None, 1:].astype(np.float64))
 
@@ -261,9 +253,6 @@ def denoise(motion: Motion, seed: int = 0, *, prior: RnnPrior | None = None,
     interpolated if config.held_frames is "fill" and its spikes if config.spike_angle is set, then low-passed at
     config.start_cutoff_hz unless that is None or the input is too short to filter, under lowpass.BUTTER_MIN_FRAMES
     frames)."""
-    from course_lib.control.lowpass import BUTTER_MIN_FRAMES, lowpass
-    from course_lib.representations import encode_state_features
-
     torch.manual_seed(seed)
     config = config or DenoiseConfig()
     for name, value, allowed in (("contact_bits", config.contact_bits, CONTACT_BITS),

@@ -60,19 +60,28 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from course_lib.control.energy import arc_length_at, arc_position, check_curve, curve_energy, polyline_between
-from course_lib.control.kinematics import heading_yaw, integrate_root
+from course_lib.control.energy import (
+    arc_length_at,
+    arc_position,
+    check_curve,
+    curve_energy,
+    polyline_between,
+    stance_plane,
+)
+from course_lib.control.kinematics import heading_yaw, second_pose
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
 from course_lib.control.planting import plant_with_prior
 from course_lib.control.pso import PsoConfig, pso
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.rollout import draw_noise
+from course_lib.control.starts import held_out_start
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import CONTACT_HEIGHT, Motion
+from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 SPACES = ("noise", "frames")
 
-__all__ = ["SPACES", "DesignConfig", "design_motion", "default_prior", "prepare_start", "stance_plane", "solve_windows"]
+__all__ = ["SPACES", "DesignConfig", "design_motion", "default_prior", "prepare_start", "solve_windows"]
 
 
 @dataclass
@@ -125,20 +134,9 @@ def default_prior() -> RnnPrior:
     return RnnPrior.from_checkpoints()
 
 
-def stance_plane(motion: Motion, default: float = 0.0244) -> float:
-    """The contact plane's height of eq. (18): the median height of motion's toes on contact frames (m)."""
-    sk = motion.skeleton
-    toes = motion.positions()[:, [sk.index("LeftToeBase"), sk.index("RightToeBase")], 1]  # (T, 2)
-    bits = motion.contacts()
-    return float(np.median(toes[bits])) if bits.any() else default
-
-
 def prepare_start(start: Motion | None, gait: str, seed: int, init, prior: RnnPrior, fps: float = 30.0):
     """-> (raw (1, 2, D) the two start frames, init (3,) the pose of frame 0 placed at init = (x, z, yaw) or
     the clip's own when init is None, the start Motion)."""
-    from course_lib.control.starts import held_out_start
-    from course_lib.representations import encode_state_features, root_start
-
     if start is None:
         start = held_out_start(gait, seed, fps=fps)
     if not isinstance(start, Motion):
@@ -150,12 +148,6 @@ def prepare_start(start: Motion | None, gait: str, seed: int, init, prior: RnnPr
     raw = torch.from_numpy(prior.clean(torch.from_numpy(encode_state_features(start)))[:2].numpy())[None]
     init = root_start(start) if init is None else init
     return raw, torch.tensor(init, dtype=torch.float64), start
-
-
-def _second_pose(raw: torch.Tensor, init0: torch.Tensor) -> torch.Tensor:
-    """(x, z, yaw) of start frame 1, one eq. (4) step from frame 0."""
-    xz, yaw = integrate_root(raw[:, 1:2, 0:2], raw[:, 1:2, 2], init0[None])
-    return torch.cat((xz[0, 0], yaw[0]))
 
 
 def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, start: Motion | None = None, *,
@@ -203,10 +195,8 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
             return e + ((gained - due) * fps / n) ** 2 / config.sigma_speed ** 2 * n
         return energy
 
-    frames, info = solve_windows(prior, start_m, raw0, _second_pose(raw0, init0), control,
+    frames, info = solve_windows(prior, start_m, raw0, second_pose(raw0, init0), control,
                                  max(int(round(seconds * fps)), 3) - 2, config, seed)
-    from course_lib.representations import decode_state_features
-
     feats = torch.cat((raw0[0], frames), 0).numpy()
     motion = decode_state_features(feats, start_m.skeleton, fps, tuple(float(v) for v in init0))
     motion.meta = dict(motion.meta, design=info, curve=c, contacts_bits=feats[:, prior.contact_cols])

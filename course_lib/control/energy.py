@@ -21,9 +21,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from course_lib.motion import Motion
+
 __all__ = ["SIGMA_FIT2", "SIGMA_CON", "SIGMA_CON_Y", "check_curve", "nearest_on_polyline", "arc_lengths",
            "polyline_between", "arc_position", "arc_length_at", "curve_energy",
-           "contact_energy"]
+           "contact_energy", "stance_plane"]
 
 SIGMA_FIT2 = 0.5  # sigma_fit^2 of eq. (17), m^2: the paper's setting
 SIGMA_CON = 0.03  # m, eq. (18) stillness (not given in the paper)
@@ -121,3 +123,11 @@ def contact_energy(toes: torch.Tensor, bits: torch.Tensor, prev_toes: torch.Tens
     still = ((before - toes) ** 2).sum(-1) / sigma_con ** 2  # (N, T, 2)
     on_plane = (toes[..., 1] - plane) ** 2 / sigma_con_y ** 2  # (N, T, 2), n = (0, 1, 0)
     return (bits * (still + on_plane)).sum((-1, -2))
+
+
+def stance_plane(motion: Motion, default: float = 0.0244) -> float:
+    """The contact plane's height of eq. (18): the median height of motion's toes on contact frames (m)."""
+    sk = motion.skeleton
+    toes = motion.positions()[:, [sk.index("LeftToeBase"), sk.index("RightToeBase")], 1]  # (T, 2)
+    bits = motion.contacts()
+    return float(np.median(toes[bits])) if bits.any() else default

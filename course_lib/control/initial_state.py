@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import torch
 
+from course_lib.control.kinematics import world_positions
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.skeleton import Skeleton
 
@@ -58,8 +59,6 @@ def predicted_second(prior: RnnPrior, raw: torch.Tensor, state, skeleton: Skelet
 
 def first_frame_speed(raw_pair: torch.Tensor, skeleton: Skeleton, fps: float = 30.0) -> float:
     """(1, 2, D) raw frames -> the mean joint speed (m/s) from frame 0 to frame 1: the "hop" of eq. (26)."""
-    from course_lib.control.kinematics import world_positions
-
     r = raw_pair.double().clone()
     r[:, 0, :3] = 0.0
     p = world_positions(r, skeleton, torch.zeros(3, dtype=torch.float64))  # frame 0 at the origin, frame 1 a step on

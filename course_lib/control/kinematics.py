@@ -12,7 +12,7 @@ import torch
 from course_lib.rotations import euler_to_quat
 from course_lib.skeleton import Skeleton, chain_positions
 
-__all__ = ["integrate_root", "world_positions", "toe_positions", "heading_yaw"]
+__all__ = ["integrate_root", "second_pose", "world_positions", "toe_positions", "heading_yaw"]
 
 
 def heading_yaw(direction) -> torch.Tensor:
@@ -40,6 +40,13 @@ def integrate_root(d: torch.Tensor, dyaw: torch.Tensor, init: torch.Tensor) -> t
     # p_t - p_{t-1} = R_y(yaw_{t-1}) d_t
     step = torch.stack((c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]), -1)  # (..., T, 2)
     return init[..., None, :2] + torch.cumsum(step, -2), yaw
+
+
+def second_pose(raw: torch.Tensor, init0: torch.Tensor) -> torch.Tensor:
+    """Two raw start frames (1, 2, D), init0 (3,) = (x, z, yaw) of frame 0 -> (3,) (x, z, yaw) of frame 1, one
+    eq. (4) step from frame 0."""
+    xz, yaw = integrate_root(raw[:, 1:2, 0:2], raw[:, 1:2, 2], init0[None])
+    return torch.cat((xz[0, 0], yaw[0]))
 
 
 def world_positions(raw: torch.Tensor, skeleton: Skeleton, init: torch.Tensor, joints=None) -> torch.Tensor:

@@ -40,11 +40,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from course_lib.control.design import default_prior, prepare_start
+from course_lib.control.energy import stance_plane
+from course_lib.control.kinematics import second_pose
 from course_lib.control.lbfgs import LbfgsConfig, minimise_lbfgs
 from course_lib.control.rnn_prior import RnnPrior
 from course_lib.control.rollout import draw_noise
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import Motion
+from course_lib.representations import decode_state_features
 from course_lib.synthetic.locomotion import GAIT_PARAMS
 
 # The fastest commanded speed the training data holds (m/s): the top of the run's range.
@@ -110,15 +114,13 @@ class OnlineController:
                  config: OnlineConfig | None = None):
         import torch._dynamo  # noqa: F401  -- torch.optim imports it on its first optimiser (1.3 s): not in step 1
 
-        from course_lib.control.design import _second_pose, default_prior, prepare_start, stance_plane
-
         self.prior = prior or default_prior()
         self.config = config or OnlineConfig()
         self.fps = float(self.prior.model.config.fps)
         raw0, init0, start_m = prepare_start(start, gait, seed, None, self.prior, self.fps)
         self.skeleton, self.plane = start_m.skeleton, stance_plane(start_m)
         self.generator = torch.Generator().manual_seed(seed)
-        self.prev, self.pose = raw0.double(), _second_pose(raw0, init0)  # (1, 2, D), (3,) of frame 1
+        self.prev, self.pose = raw0.double(), second_pose(raw0, init0)  # (1, 2, D), (3,) of frame 1
         self.state = self.prior.start_state(raw0, self.skeleton)
         self.frames = [raw0[0]]  # raw features so far, from the two start frames
         self.init0 = init0
@@ -190,8 +192,6 @@ class OnlineController:
         return float(torch.linalg.vector_norm(end[:2] - self.pose[:2])) * self.fps / raw.shape[1]
 
     def _commit(self, energy: WindowEnergy, raw: torch.Tensor, state) -> Motion:
-        from course_lib.representations import decode_state_features
-
         pose = self.pose
         self.state = state  # the RNN has read prev's last frame and raw[:-1] (+ d)
         self.pose = energy.end_pose(raw)
@@ -203,7 +203,5 @@ class OnlineController:
 
     def motion(self) -> Motion:
         """Everything generated so far, from the two start frames."""
-        from course_lib.representations import decode_state_features
-
         feats = torch.cat(self.frames, 0).numpy()
         return decode_state_features(feats, self.skeleton, self.fps, tuple(float(v) for v in self.init0))

@@ -19,7 +19,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from course_lib.evaluation import foot_skate
+from course_lib.models.contact_cleanup import leg_columns, plant_feet
 from course_lib.motion import CONTACT_HEIGHT, Motion
+from course_lib.representations import decode_state_features, encode_state_features, root_start
 
 __all__ = ["plant_legs", "plant_with_prior"]
 
@@ -30,9 +33,6 @@ def plant_legs(motion: Motion, columns, height: float = CONTACT_HEIGHT["ToeBase"
     ``height`` still and on the floor, moving only the state-feature ``columns`` (the leg angles,
     `contact_cleanup.leg_columns`): lesson 03's `contact_cleanup.plant_feet` with the root left where it is and
     design.py's low-toe rule for the stance.  sigma_slide: m a frame a held toe may slide (plant_feet's)."""
-    from course_lib.models.contact_cleanup import plant_feet
-    from course_lib.representations import decode_state_features, encode_state_features, root_start
-
     columns = [int(c) for c in columns]
     if not columns or any(c < 6 for c in columns):
         raise ValueError(f"plant_legs: columns must be joint-angle columns (>= 6; the root stays), got {columns}")
@@ -57,9 +57,6 @@ def plant_with_prior(motion: Motion, prior, height: float = CONTACT_HEIGHT["ToeB
     ``height``) is not above the motion's: a planting that slides the toes more is not kept (seen once, by hand, on
     lesson 04's running S-curve, where the low toes that the pose calls swinging moved faster after planting).  The
     check reads the motion alone, no reference; motion.meta["planted"] says which was kept."""
-    from course_lib.evaluation import foot_skate
-    from course_lib.models.contact_cleanup import leg_columns
-
     planted = plant_legs(motion, leg_columns(motion.skeleton, prior.fixed), height, sigma_slide)
     if foot_skate([planted], height=height) <= foot_skate([motion], height=height):
         return planted

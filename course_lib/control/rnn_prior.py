@@ -26,11 +26,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from course_lib import representations
+from course_lib.datasets import STD_FLOOR, load_stats
+from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig, mixture_log_prob
 from course_lib.skeleton import Skeleton
+from course_lib.training import load_checkpoint
 
 __all__ = ["RnnPrior", "noise_energy", "expand_state", "SIGMA_NOISE"]
 
 SIGMA_NOISE = 0.05  # eq. (16): "set to 0.05 by experiment"
+CHECKPOINTS = Path(__file__).resolve().parents[2] / "checkpoints"  # the shipped ones (lesson 03 trains gmm_rnn.pt)
 
 
 def noise_energy(d: torch.Tensor, sigma_noise: float = SIGMA_NOISE) -> torch.Tensor:
@@ -60,20 +65,15 @@ class RnnPrior:
 
     @classmethod
     def from_checkpoints(cls, checkpoints: Path | None = None) -> RnnPrior:
-        """The shipped GMM-RNN and its stats (lesson 03's ``load_models_rnn``)."""
-        from course_lib.datasets import load_stats
-        from course_lib.experiments import gmm_rnn as lesson03
-
-        checkpoints = Path(checkpoints or lesson03.CHECKPOINTS)
-        model = lesson03.load_models_rnn(checkpoints)
+        """The shipped GMM-RNN (checkpoints/gmm_rnn.pt, lesson 03's ``load_models_rnn``) and its stats."""
+        checkpoints = Path(checkpoints or CHECKPOINTS)
+        model = load_checkpoint(checkpoints / "gmm_rnn.pt", GmmRnn, GmmRnnConfig)
         model.eval()
         for p in model.parameters():
             p.requires_grad_(False)
         return cls(model, *load_stats(checkpoints / "gmm_rnn_stats.npz", "state_features"))
 
     def __post_init__(self):
-        from course_lib.datasets import STD_FLOOR
-
         self.mean, self.std = np.asarray(self.mean, np.float64), np.asarray(self.std, np.float64)
         D = self.model.config.dim
         if self.mean.shape != (D,) or self.std.shape != (D,):
@@ -105,8 +105,6 @@ class RnnPrior:
             params = dict(params, log_sigma=params["log_sigma"].clamp(min=float(np.log(self.min_std))))
         if hasattr(self.model, "log_prob"):
             return self.model.log_prob(targets, params)
-        from course_lib.models.gmm_rnn import mixture_log_prob
-
         return mixture_log_prob(targets, params["logits"], params["mu"], params["log_sigma"])
 
     @property
@@ -123,8 +121,6 @@ class RnnPrior:
         """Raw state features (N, T, D) -> the model's normalised input features (N, T, D), float32."""
         raw = raw.double()
         if self.features == "feet_anchored":
-            from course_lib import representations
-
             raw = representations.anchor_on_feet(raw, skeleton, tau=self.anchor_tau, rule=self.anchor_rule)
         mean, std = self.model_norm
         return ((raw - mean) / std).float()
@@ -138,8 +134,6 @@ class RnnPrior:
         raw[..., self.contact_cols] = raw[..., self.contact_cols].round()  # 0/1 bits, not 2e-8 (float32)
         toes = None
         if self.features == "feet_anchored":
-            from course_lib import representations
-
             toes = representations.toes_relative(raw, skeleton)
             raw = representations.unanchor_feet(raw, skeleton, tau=self.anchor_tau, rule=self.anchor_rule, toes=toes)
         return (raw, toes) if with_toes else raw

@@ -2,7 +2,7 @@
 held-out subjects (``DataSpec.test_subjects``), resampled to the GMM-RNN's 30 fps, labelled by gait.
 
 Taught in notebooks/04_map_control.ipynb.  Loading reads data/habibie_locomotion.npz (generated and cached on
-first use by ``experiments.vae_lstm.load_clips``); nothing is read at import time.
+first use by ``corpus.load_clips``); nothing is read at import time.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import functools
 
 import numpy as np
 
+from course_lib.corpus import DataSpec, load_clips
 from course_lib.motion import Motion
 
 __all__ = ["held_out_clips", "held_out_start", "gaits", "training_clips"]
@@ -20,16 +21,12 @@ FPS = 30.0  # the GMM-RNN's frame rate (sec. 4.1.3)
 
 @functools.lru_cache(maxsize=2)
 def _clips(fps: float) -> tuple[Motion, ...]:
-    from course_lib.experiments.vae_lstm import DataSpec, load_clips
-
     spec = DataSpec()
     return tuple(m.resample(fps) for m in load_clips(spec, progress=False) if m.subject in spec.test_subjects)
 
 
 @functools.lru_cache(maxsize=1)
 def _training(fps: float) -> tuple[Motion, ...]:
-    from course_lib.experiments.vae_lstm import DataSpec, load_clips
-
     spec = DataSpec()
     return tuple(m.resample(fps) for m in load_clips(spec, progress=False) if m.subject not in spec.test_subjects)
 

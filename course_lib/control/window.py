@@ -18,9 +18,11 @@ from dataclasses import dataclass, field
 
 import torch
 
-from course_lib.control.energy import SIGMA_CON, SIGMA_CON_Y, contact_energy
-from course_lib.control.kinematics import integrate_root, toe_positions
+from course_lib.control.energy import SIGMA_CON, SIGMA_CON_Y, contact_energy, stance_plane
+from course_lib.control.kinematics import integrate_root, second_pose, toe_positions
 from course_lib.control.rnn_prior import SIGMA_NOISE, RnnPrior, expand_state, noise_energy
+from course_lib.control.rollout import rollout
+from course_lib.representations import encode_state_features, root_start
 from course_lib.skeleton import Skeleton
 
 __all__ = ["WindowEnergy", "Control"]
@@ -62,12 +64,9 @@ class WindowEnergy:
     def for_motion(cls, prior: RnnPrior, motion, control: Control | None = None, **kw):
         """Eq. (19) on a motion's own frames (at the RNN's fps): its first two frames known (sec. 4.1.4's start,
         zero state), the rest scored -> (energy, the rest as raw frames (1, T - 2, D))."""
-        from course_lib.control.design import _second_pose, stance_plane
-        from course_lib.representations import encode_state_features, root_start
-
         raw = prior.clean(torch.from_numpy(encode_state_features(motion)))[None]  # (1, T, D)
         state = prior.start_state(raw[:, :2], motion.skeleton)
-        init = _second_pose(raw[:, :2], torch.tensor(root_start(motion), dtype=torch.float64))
+        init = second_pose(raw[:, :2], torch.tensor(root_start(motion), dtype=torch.float64))
         kw.setdefault("plane", stance_plane(motion))
         return cls(prior, motion.skeleton, raw[:, :2], state, init, control, **kw), raw[:, 2:]
 
@@ -113,8 +112,6 @@ class WindowEnergy:
                 bias: float = 0.0) -> tuple[torch.Tensor, dict]:
         """Eq. (19) of the frames the RNN's sampler makes from eps (N, T, D), gumbel (N, T, M) and d (rollout.py)
         -> (raw frames (N, T, D), terms)."""
-        from course_lib.control.rollout import rollout
-
         N = len(eps)
         raw, nll, self.last_state, toes = rollout(self.prior, self.prev.expand(N, -1, -1),
                                                   expand_state(self.state, N), eps, gumbel, self.skeleton, d, bias,

@@ -27,12 +27,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from course_lib.reproduce import CHECKPOINTS, rounded
+from course_lib.results import rounded
 
 __all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "offline_case", "measure_design",
            "online_run", "held_share", "parallel_map", "denoise_clips", "denoise_eval", "initial_state_eval",
            "eval_control", "train_control", "record_results", "recorded_results"]
 
+CHECKPOINTS = Path(__file__).resolve().parents[2] / "checkpoints"
 COMMAND = "python -m course_lib.reproduce control"
 PACE = {"walk": 1.2, "run": 2.5}  # m/s each curve is asked at (held-out walks: median 1.07; runs: 2.86)
 CURVES = ("line", "circle_r2", "s_curve", "u_turn", "polyline")
@@ -146,9 +147,9 @@ def offline_case(name: str, gait: str, method: str, seed: int = 0, scale: float 
 def _run_free(c: np.ndarray, seconds: float, gait: str, seed: int, greedy: bool):
     """The RNN run without control (baseline a) or steered frame by frame (baseline b: each frame's sampled
     root step turned towards a point 0.5 m ahead on the curve, at most 0.1 rad, and scaled to the pace)."""
-    from course_lib.control.design import _second_pose, default_prior, prepare_start
+    from course_lib.control.design import default_prior, prepare_start
     from course_lib.control.energy import arc_lengths, arc_position, polyline_between
-    from course_lib.control.kinematics import heading_yaw
+    from course_lib.control.kinematics import heading_yaw, second_pose
     from course_lib.representations import decode_state_features
 
     prior = default_prior()
@@ -156,7 +157,7 @@ def _run_free(c: np.ndarray, seconds: float, gait: str, seed: int, greedy: bool)
         torch.from_numpy(c[1] - c[0])))), prior)
     g = torch.Generator().manual_seed(seed)
     state, prev = prior.start_state(raw0, start.skeleton), raw0.double()
-    x, z, yaw = (float(v) for v in _second_pose(raw0, init0))
+    x, z, yaw = (float(v) for v in second_pose(raw0, init0))
     L, step_len, s = float(arc_lengths(c)[-1]), float(arc_lengths(c)[-1]) / seconds / 30, 0.0
     frames = []
     for _ in range(max(int(round(seconds * 30)), 3) - 2):

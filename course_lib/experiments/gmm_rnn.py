@@ -5,7 +5,7 @@ stand-in for the paper's user study (Fig. 12).
     python -m course_lib.reproduce gmm_rnn --eval-only  # the evaluation from checkpoints/ only
     python -m course_lib.reproduce gmm_rnn --only gans  # keep the RNN checkpoint, retrain the refiners
 
-Data: lesson 02's synthetic locomotion clips (experiments.vae_lstm.DataSpec: 400 clips of 4 s, 10
+Data: lesson 02's synthetic locomotion clips (corpus.DataSpec: 400 clips of 4 s, 10
 subjects, 3 held out) resampled to 30 fps and encoded as ``state_features`` (eq. 3 + 2 contact bits).
 Models: the GMM-RNN (sec. 4.1), GAN1 (refiner without contact awareness) and GAN2 (contact-aware
 refiner, sec. 4.3), each refiner trained for three seeds.  The RNN reads the clips' state features anchored on
@@ -29,13 +29,14 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from course_lib.corpus import DataSpec, load_clips
 from course_lib.datasets import FixedDofs, WindowDataset, load_stats
 from course_lib.evaluation import foot_skate as foot_skate_of  # noqa: F401  (lesson 03's old name, moved)
 from course_lib.evaluation.contacts import contact_agreement, lower_toe
 from course_lib.evaluation.freezing import freeze_floor, joint_speed  # lesson 06 imports them from here
 from course_lib.motion import Motion
 from course_lib.representations import decode_state_features, encode_state_features, root_start
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"
@@ -103,8 +104,6 @@ class Lesson03Spec:
 def lesson03_data(spec: Lesson03Spec, progress: bool = True) -> tuple[list[Motion], list[Motion], WindowDataset]:
     """-> (train clips, held-out clips) at spec.fps and the training WindowDataset (50-frame windows,
     mirrored clips added, normalisation from the training split)."""
-    from course_lib.experiments.vae_lstm import DataSpec, load_clips
-
     data = DataSpec(seed=spec.data_seed)
     clips = [m.resample(spec.fps) for m in load_clips(data, progress=progress)]
     test = [m for m in clips if m.subject in data.test_subjects]
@@ -162,8 +161,9 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     Teacher forcing with input noise, RMSProp lr 1e-3 x 0.95 per epoch (sec. 4.1.3); then the stages of
     spec.finetune with ``self_feed`` inputs (true frames alternating with the model's own predictions) at
     spec.finetune_lr; finetune_steps overrides every stage's step count."""
+    from course_lib.history import History
     from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
-    from course_lib.training import History, fit
+    from course_lib.training import fit
 
     features, rnn_stats = rnn_features(ds, spec.rnn_features, spec.rnn_anchor_tau, spec.rnn_anchor_rule)
     fixed = tuple(int(c) for c in np.flatnonzero(FixedDofs.from_stats(*rnn_stats).mask)) if spec.rnn_fixed_dims else ()

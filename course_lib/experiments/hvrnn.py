@@ -37,7 +37,7 @@ import torch
 
 from course_lib.datasets import ACTIONS, STYLES
 from course_lib.motion import Motion
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"

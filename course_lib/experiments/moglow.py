@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"

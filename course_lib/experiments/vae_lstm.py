@@ -20,20 +20,20 @@ from __future__ import annotations
 import json
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from course_lib.datasets import WindowDataset, load_motions, save_motions
+from course_lib.corpus import DataSpec, generate_clips, load_clips  # noqa: F401  (lesson 02 reads them here)
+from course_lib.datasets import WindowDataset
 from course_lib.motion import Motion
 from course_lib.representations import decode_positions, root_start
-from course_lib.reproduce import rounded
+from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINTS = ROOT / "checkpoints"
-DATA_FILE = ROOT / "data" / "habibie_locomotion.npz"
 COMMAND = "python -m course_lib.reproduce vae_lstm"
 FRAMES = (70, 90, 120, 160, 210)  # Habibie Tables 1-2 columns (0-based frame indices here)
 
@@ -44,76 +44,6 @@ PAPER_TABLE1 = {"ERD": [0.66, 2.10, 6.13, 13.53, 19.49], "LSTM-3LR": [0.55, 3.18
 PAPER_TABLE2 = {"ERD": [2.31, 2.62, 2.54, 2.99, 2.63], "LSTM-3LR": [2.11, 2.15, 2.36, 2.34, 2.17],
                 "cRBM, CD-1": [2.76, 2.81, 3.13, 2.82, 3.01], "cRBM, CD-15": [2.64, 2.71, 3.08, 2.85, 3.21],
                 "VAE-LSTM": [0.82, 0.85, 0.82, 0.83, 0.87], "VAE-LSTM (prior sample)": [1.23, 1.27, 1.24, 1.24, 1.29]}
-
-
-@dataclass
-class DataSpec:
-    """The lesson-02 data: synthetic locomotion clips, split by subject."""
-
-    n_clips: int = 400  # 4-s clips; 10 subjects of 40 clips each
-    n_subjects: int = 10
-    test_subjects: tuple = ("s00", "s05", "s09")  # held out: 120 test clips
-    seed: int = 2017
-    fps: float = 60.0
-    length: int = 240  # frames per clip (4 s), Habibie sec. 4.1
-    mirror: bool = True  # left-right mirrored training clips (augmentation)
-    one_body: bool = False  # every clip retargeted to the canonical skeleton (`Motion.retarget`): one body
-    extra: dict = field(default_factory=dict)
-
-
-def generate_clips(spec: DataSpec, progress: bool = True) -> list[Motion]:
-    """spec.n_clips locomotion clips at spec.fps.  A clip whose generation fails (the generator can
-    produce NaN for rare programs) is redrawn with the next seed, so the count is always met."""
-    from tqdm.auto import tqdm
-
-    from course_lib.datasets import _clip_seed, resample_clips
-    from course_lib.synthetic import generate_locomotion, make_subjects
-
-    subjects = make_subjects(spec.n_subjects, spec.seed)
-    clips, redrawn = [], 0
-    bar = {} if progress else dict(disable=True)  # an empty dict lets TQDM_DISABLE=1 apply
-    for i in tqdm(range(spec.n_clips), desc="clips", **bar):
-        for attempt in range(20):
-            try:
-                m = generate_locomotion(subjects[i % spec.n_subjects], None, duration=(spec.length + 1) / spec.fps,
-                                        seed=_clip_seed(spec.seed, i, attempt))
-                break
-            except ValueError:
-                redrawn += 1
-        else:
-            raise RuntimeError(f"clip {i}: the generator failed 20 times")
-        clips.append(resample_clips([m], spec.fps)[0])
-    if redrawn:
-        print(f"generate_clips: {redrawn} clip(s) redrawn after a generator failure", file=sys.stderr)
-    return clips
-
-
-CACHE_KEYS = ("n_clips", "n_subjects", "seed", "fps", "length")  # the DataSpec fields that decide the clips
-
-
-def load_clips(spec: DataSpec, path: Path = DATA_FILE, progress: bool = True) -> list[Motion]:
-    """The cached clips at ``path`` if it exists, else generated (and cached, with the spec that made them).
-
-    A cache made from another spec is refused with an error naming the difference (it is not overwritten: delete
-    it or pass another ``path``); a cache from before the spec was recorded must at least hold spec.n_clips clips
-    at spec.fps."""
-    from course_lib.datasets import read_file_meta
-
-    wanted = {k: getattr(spec, k) for k in CACHE_KEYS}
-    if not path.exists():
-        clips = generate_clips(spec, progress)
-        save_motions(clips, path, meta={"data_spec": wanted}, overwrite=True)
-        return clips
-    made = read_file_meta(path).get("data_spec")
-    clips = load_motions(path)
-    if made is None:
-        made = {"n_clips": len(clips), "fps": clips[0].fps}
-    differ = {k: (v, wanted[k]) for k, v in made.items() if k in wanted and v != wanted[k]}
-    if differ:
-        what = ", ".join(f"{k} {a!r}, asked {b!r}" for k, (a, b) in differ.items())
-        raise ValueError(f"{path}: these clips were made with another DataSpec ({what}); delete the file to "
-                         "regenerate it, or pass another path")
-    return clips
 
 
 def datasets(spec: DataSpec, clips: list[Motion]) -> tuple[WindowDataset, WindowDataset]:

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from course_lib.motion import STANCE_MAX_ABOVE, trusted_contacts
+from course_lib.representations import _check_state_tensor, _turn, local_positions, root_trajectory
 from course_lib.skeleton import Skeleton
 
 __all__ = ["TOE_FLOOR", "enforce_contacts", "leg_columns", "plant_feet", "toe_floor_height"]
@@ -70,11 +71,9 @@ def enforce_contacts(features, skeleton: Skeleton, toe_floor: float = TOE_FLOOR,
     (centred, odd; 1 = exact constraints), trading some skate for less jerk from a noisy stance toe.
     Works on numpy arrays or torch tensors (returns the same type); joint angles, heading and contact
     bits are returned unchanged."""
-    from course_lib.models.refiner import _check_features, local_positions
-
     is_torch = torch.is_tensor(features)
     f = features.detach().double() if is_torch else torch.as_tensor(np.asarray(features, dtype=np.float64))
-    _check_features(f, skeleton)
+    _check_state_tensor(f, skeleton)
     if int(smooth) != smooth or smooth < 1 or smooth % 2 == 0:
         raise ValueError(f"enforce_contacts: smooth must be an odd int >= 1, got {smooth!r}")
     if f.shape[-2] < 2:
@@ -122,7 +121,7 @@ def _enforce_one(f: np.ndarray, toes: np.ndarray, bits: np.ndarray, toe_floor: f
             continue
         lx, lz = toes[t, k, 0], toes[t, k, 2]
         px, pz = toes[t - 1, k, 0], toes[t - 1, k, 2]
-        step_x = -((c[t] * lx + s[t] * lz) - (c[t - 1] * px + s[t - 1] * pz))  # world step, R_y as _rot_y
+        step_x = -((c[t] * lx + s[t] * lz) - (c[t - 1] * px + s[t - 1] * pz))  # world step, R_y as in _turn
         step_z = -((-s[t] * lx + c[t] * lz) - (-s[t - 1] * px + c[t - 1] * pz))
         # back into frame t-1's floor frame: R_y(-yaw_{t-1})
         f[t, 0] = c[t - 1] * step_x - s[t - 1] * step_z
@@ -160,11 +159,9 @@ def plant_feet(features, skeleton: Skeleton, columns, offsets=None, toe_floor: f
     frame-to-frame difference (those sigmas / ``smoothness``).  Flagged feet as in `enforce_contacts` (bit >
     threshold, the toe within max_above of the lower toe).  offsets: (N, J, 3) each motion's rest offsets.
     Heading and contact bits are unchanged; returns the input's type (numpy or torch)."""
-    from course_lib.models.refiner import _check_features, _rot_y, local_positions, root_trajectory
-
     is_torch = torch.is_tensor(features)
     f = features.detach().double() if is_torch else torch.as_tensor(np.asarray(features, dtype=np.float64))
-    _check_features(f, skeleton)
+    _check_state_tensor(f, skeleton)
     if f.ndim != 3 or f.shape[1] < 2:
         raise ValueError(f"plant_feet: features must be (N, T >= 2, D), got {tuple(f.shape)}")
     cols = torch.as_tensor(sorted({int(c) for c in columns}), dtype=torch.long)
@@ -191,7 +188,7 @@ def plant_feet(features, skeleton: Skeleton, columns, offsets=None, toe_floor: f
         g = moved()
         local = local_positions(g, skeleton, off)[..., toes_idx, :]  # (N, T, 2, 3)
         root, yaw = root_trajectory(g)
-        world_xz = _rot_y(local[..., [0, 2]], yaw[..., None]) + root[..., None, [0, 2]]  # (N, T, 2, 2)
+        world_xz = _turn(local[..., [0, 2]], yaw[..., None]) + root[..., None, [0, 2]]  # (N, T, 2, 2)
         slide = ((world_xz[:, 1:] - world_xz[:, :-1]).pow(2).sum(-1) * pinned).sum() / sigma_slide ** 2
         floor = ((local[..., 1] - toe_floor).pow(2) * flagged).sum() / sigma_floor ** 2
         near = (delta / scale).pow(2).sum() + (smoothness * (delta[:, 1:] - delta[:, :-1]) / scale).pow(2).sum()

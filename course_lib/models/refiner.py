@@ -74,8 +74,9 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from course_lib.history import History
 from course_lib.models.contact_cleanup import leg_columns
-from course_lib.representations import local_positions
+from course_lib.representations import _check_state_tensor, _turn, local_positions, root_trajectory
 from course_lib.skeleton import Skeleton
 
 __all__ = ["AdversarialSchedule", "Discriminator", "HistoryBuffer", "Refiner", "RefinerConfig",
@@ -170,38 +171,6 @@ class RefinerConfig:
 # ----------------------------------------------------------------------------- kinematics in torch
 
 
-def _check_features(x: torch.Tensor, skeleton: Skeleton, name: str = "features") -> None:
-    D = 6 + 3 * (skeleton.num_joints - 1) + 2
-    if not torch.is_tensor(x) or x.ndim < 2 or x.shape[-1] != D:
-        shape = tuple(x.shape) if torch.is_tensor(x) else type(x).__name__
-        raise ValueError(f"{name} must be (..., T, {D}) state features for {skeleton.num_joints} joints, got {shape}")
-    if not torch.isfinite(x).all():
-        raise ValueError(f"{name} contains NaN or inf")
-
-
-def _rot_y(v_xz: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
-    """Floor-frame (x, z) vectors (..., 2), yaw (...) -> world, R_y(yaw) v (as representations._to_world)."""
-    c, s = torch.cos(yaw), torch.sin(yaw)
-    return torch.stack((c * v_xz[..., 0] + s * v_xz[..., 1], -s * v_xz[..., 0] + c * v_xz[..., 1]), -1)
-
-
-def root_trajectory(features: torch.Tensor, init=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
-    """Raw state features (..., T, D) -> world root positions (..., T, 3) and heading yaw (..., T).
-
-    Wang eq. (4), M_t = M_{t-1} M_t,local, in torch (representations.integrate_root); row 0 of the
-    deltas is ignored, frame 0 sits at init = (x0, z0, yaw0).
-    """
-    if not torch.is_tensor(features) or features.ndim < 2 or features.shape[-1] < 6:
-        raise ValueError(f"features must be (..., T, D >= 6), got {getattr(features, 'shape', type(features))}")
-    x0, z0, yaw0 = (float(v) for v in init)
-    dyaw = features[..., 1:, 2]
-    yaw = yaw0 + torch.cat((torch.zeros_like(features[..., :1, 2]), torch.cumsum(dyaw, -1)), -1)  # (..., T)
-    step = _rot_y(features[..., 1:, 0:2], yaw[..., :-1])  # p_t - p_{t-1} = R_y(yaw_{t-1}) d_t
-    xz = torch.cat((torch.zeros_like(step[..., :1, :]), torch.cumsum(step, -2)), -2)  # (..., T, 2)
-    root = torch.stack((xz[..., 0] + x0, features[..., 3], xz[..., 1] + z0), -1)
-    return root, yaw
-
-
 def end_effector_features(features: torch.Tensor, skeleton: Skeleton, fps: float,
                           offsets: torch.Tensor | None = None, joints=None) -> tuple[torch.Tensor, torch.Tensor]:
     """Raw state features (..., T, D) -> p_end, v_end: (..., T, 3E) each (E = leaf joints, or the joint indices
@@ -216,7 +185,7 @@ def end_effector_features(features: torch.Tensor, skeleton: Skeleton, fps: float
     if T < 2:
         raise ValueError(f"end_effector_features needs T >= 2 frames for velocities, got {T}")
     d, dyaw = features[..., 1:, None, 0:2], features[..., 1:, None, 2]
-    moved_xz = _rot_y(pos[..., 1:, :, [0, 2]], dyaw) + d  # frame t's points in frame t-1's floor frame
+    moved_xz = _turn(pos[..., 1:, :, [0, 2]], dyaw) + d  # frame t's points in frame t-1's floor frame
     moved = torch.stack((moved_xz[..., 0], pos[..., 1:, :, 1], moved_xz[..., 1]), -1)
     v = (moved - pos[..., :-1, :, :]) * fps  # (..., T-1, E, 3)
     v = torch.cat((v[..., :1, :, :], v), -3)  # frame 0 repeats frame 1
@@ -291,7 +260,7 @@ class Refiner(nn.Module):
 
     def forward(self, x: torch.Tensor, offsets=None) -> torch.Tensor:
         """x: (N, T, D) normalised x_RNN, offsets (N, J, 3) each motion's rest offsets or None -> R(x): (N, T, D)."""
-        _check_features(x, self.skeleton, "x")
+        _check_state_tensor(x, self.skeleton, "x")
         if x.ndim != 3:
             raise ValueError(f"x must be (N, T, {self.config.dim}), got {tuple(x.shape)}")
         p_end, v_end = self.end_effectors(x, offsets)  # (N, T, 3E) each
@@ -549,7 +518,7 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
                   iterations: int, config: RefinerConfig | None = None, schedule: AdversarialSchedule | None = None,
                   generator: torch.Generator | None = None, seed: int = 0, progress: bool = True,
                   max_refiner_updates: int | None = None):
-    """Adversarial training of R and D, sec. 4.2.2 -> a training.History.
+    """Adversarial training of R and D, sec. 4.2.2 -> a History (history.py).
 
     sample_rnn_batch() -> (N, T, D) normalised x_RNN, sample_real_batch() -> (N', T, D) normalised
     mocap windows (N >= b/2, N' >= 1; the same normalisation as ``refiner.mean/std``); either may return
@@ -568,8 +537,6 @@ def train_refiner(refiner: Refiner, discriminator: Discriminator, sample_rnn_bat
     value per warm-up update: "loss" (R's lambda * root term), "root", "d_loss", "d_acc_real", "d_acc_fake".
     """
     from tqdm.auto import tqdm
-
-    from course_lib.training import History
 
     c = config or refiner.config
     if not isinstance(iterations, int) or iterations < 0:
