@@ -2,9 +2,8 @@
 named, with a message that names the problem) or the right answer; none loses a user's file or returns a plausible
 wrong answer.  The probe set is also a command that prints its table and the count per outcome class."""
 
-import pytest
-
 import misuse_probes as P
+import pytest
 
 
 @pytest.mark.parametrize("case", P.CASES, ids=[c.what for c in P.CASES])
