@@ -1,6 +1,6 @@
 """Lesson 07: one benchmark of every model of the course on one protocol.
 
-    python -m course_lib.benchmark --force  # the full benchmark -> course_lib/benchmark_results.{json,md}, replaced
+    python -m course_lib.benchmark --force  # the full benchmark -> results/benchmark_results.{json,md}, replaced
     python -m course_lib.benchmark --ci --out /tmp/bench.json  # fewer clips and seeds (CI: under 4 minutes)
 
 Taught in notebooks/07_benchmark.ipynb.  No paper compares these models with each other; the course can,
@@ -54,7 +54,7 @@ from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[1]
 CHECKPOINTS = ROOT / "checkpoints"
-RESULTS = Path(__file__).resolve().parent / "benchmark_results.json"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "benchmark_results.json"  # the repository's results/
 FPS = 30.0  # the protocol's frame rate (the classifiers' and lesson 03's)
 
 # measure -> (label, unit, better): "low", "high" or "ref" (closest to the Mocap row)

@@ -26,7 +26,7 @@ for _name, _value in {
 
 
 def load_module(path: Path):
-    """A script (tools/*.py, data_scripts/*.py: folders that are not packages) as a module."""
+    """A script (tools/*.py, studies/*/*.py, data_scripts/*.py: folders that are not packages) as a module."""
     spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[path.stem] = module  # dataclasses in the script look their module up there
@@ -34,9 +34,14 @@ def load_module(path: Path):
     return module
 
 
-def load_tool(name: str):
-    """tools/<name>.py as a module (test modules import it: ``from conftest import load_tool``)."""
-    return load_module(REPO_ROOT / "tools" / f"{name}.py")
+def load_study(name: str):
+    """studies/<lesson>/<name>.py as a module (``from conftest import load_study``); its folder goes on sys.path,
+    as when the script runs, so that it can import a study beside it."""
+    found = sorted(REPO_ROOT.glob(f"studies/*/{name}.py"))
+    assert len(found) == 1, f"expected one studies/*/{name}.py, found {found}"
+    if str(found[0].parent) not in sys.path:
+        sys.path.insert(0, str(found[0].parent))
+    return load_module(found[0])
 
 
 @pytest.fixture(scope="session")

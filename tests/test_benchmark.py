@@ -1,5 +1,5 @@
 """course_lib.benchmark (lesson 07): the protocol's pieces on known answers, a small live run, and the recorded
-results (course_lib/benchmark_results*.json) against the issue's must-shows."""
+results (results/benchmark_results*.json) against the issue's must-shows."""
 
 from __future__ import annotations
 

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
-from conftest import load_tool
+from conftest import load_study
 
 from course_lib.control import energy as E
 from course_lib.control.kinematics import heading_yaw, integrate_root, toe_positions, world_positions
@@ -776,13 +776,13 @@ def test_offline_cases_in_worker_processes_come_back_in_task_order():
 
 
 def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):
-    """tools/control_denoise_skate.py: its pairs are foot_skate's pairs (the same mean speed), split into the clean
+    """study control_denoise_skate: its pairs are foot_skate's pairs (the same mean speed), split into the clean
     motion's stance and swing, which add up."""
 
     from course_lib.evaluation import foot_skate
     from course_lib.synthetic import add_noise
 
-    tool = load_tool("control_denoise_skate")
+    tool = load_study("control_denoise_skate")
     noisy = add_noise(walk, seed=1)
     for out in (walk, noisy):
         rows = tool.split(out, walk, noisy)

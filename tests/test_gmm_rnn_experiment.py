@@ -4,7 +4,7 @@ continuations, the Fig. 12 stand-in rows (GAN2 + contacts), the long-generation 
 import numpy as np
 import pytest
 import torch
-from conftest import load_tool
+from conftest import load_study
 
 from course_lib.datasets import WindowDataset, generate_locomotion_set
 from course_lib.experiments import gmm_rnn as X
@@ -82,8 +82,8 @@ def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
 
 
 def test_recipe_sweep_runs_one_variant_end_to_end(setup):
-    """tools/gmm_rnn_sweep.py (the search behind the shipped recipe): one variant, a few steps, every number."""
-    sweep = load_tool("gmm_rnn_sweep")
+    """study gmm_rnn_sweep (the search behind the shipped recipe): one variant, a few steps, every number."""
+    sweep = load_study("gmm_rnn_sweep")
     clips, ds, *_ = setup
     threads = torch.get_num_threads()
     try:
@@ -138,8 +138,8 @@ def test_feet_anchored_rnn_round_trip_and_one_step(setup):
 
 
 def test_skate_study_measures_one_model(setup):
-    """tools/gmm_rnn_skate.py (the RNN foot-skate study behind the shipped recipe): every number of one model."""
-    study = load_tool("gmm_rnn_skate")
+    """study gmm_rnn_skate (the RNN foot-skate study behind the shipped recipe): every number of one model."""
+    study = load_study("gmm_rnn_skate")
     clips, ds, *_ = setup
     spec = X.Lesson03Spec(eval_seconds=2.0, n_random=4, random_seconds=3.0, rnn_steps=3, sample_angle_noise=0.3)
     model, _, _ = X.train_rnn(ds, spec, seed=0, progress=False)
@@ -151,10 +151,10 @@ def test_skate_study_measures_one_model(setup):
 
 
 def test_open_causes_tool_known_answers(setup):
-    """tools/gmm_rnn_open_causes.py's measures on inputs whose answers are known: the straight-through bits get a
+    """study gmm_rnn_open_causes's measures on inputs whose answers are known: the straight-through bits get a
     gradient exactly where the raw bit is in [0, 1]; the clamp mixture; the FID's mean term; the per-frame
     grounding report; the contact tests split as motion.foot_contacts combines them."""
-    tool = load_tool("gmm_rnn_open_causes")
+    tool = load_study("gmm_rnn_open_causes")
     clips, ds, *_ = setup
     r = Refiner(RefinerConfig.cpu(fc_width=8, lstm_width=8, contacts=True, discriminator_contacts=True)).eval()
     x = torch.zeros(1, 4, 68)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 import torch
-from conftest import load_tool
+from conftest import load_study
 
 from course_lib.models.baselines import AttributeRnn, AttributeRnnConfig
 from course_lib.models.hvrnn import (
@@ -307,10 +307,10 @@ def test_fixed_dofs_of_the_data_are_set_in_every_generator_output():
 
 
 def test_recipe_sweep_tool_runs_one_variant(tmp_path):
-    """tools/hvrnn_sweep.py (the search behind the shipped training length): a few steps, every number."""
+    """study hvrnn_sweep (the search behind the shipped training length): a few steps, every number."""
     import json
 
-    sweep = load_tool("hvrnn_sweep")
+    sweep = load_study("hvrnn_sweep")
     out = tmp_path / "results.json"
     assert sweep.main(["--out", str(out), "--only", "nl_1200", "--smoke"]) == 0
     res = json.loads(out.read_text())["results"]["nl_1200"]
@@ -324,5 +324,6 @@ def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     merged = json.loads(out.read_text())
     assert merged["results"]["nl_1200"] == res  # kept
     assert merged["results"]["proposed_1200_seed2"]["seed"] == 2
-    assert merged["added_by"] == {"proposed_1200_seed2": "python tools/hvrnn_sweep.py --out " + str(out)
-                                  + " --only proposed_1200_seed2 --smoke --merge"}
+    script = "studies/05_hierarchical_vrnn/hvrnn_sweep.py"
+    command = f"python {script} --out {out} --only proposed_1200_seed2 --smoke --merge"
+    assert merged["added_by"] == {"proposed_1200_seed2": command}

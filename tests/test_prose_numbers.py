@@ -64,7 +64,7 @@ ALLOWED: dict[str, dict[str, str]] = {
         "2500": "Lesson03Spec.refiner_updates, the refiners' training length: a setting",
         "128": "the LSTM widths of GmmRnnConfig and RefinerConfig, in the paper-vs-here table: settings"},
     "04_map_control": {
-        "128": "Lesson03Spec.rnn_width before the RNN was widened, naming the model a tools/ study ran on"},
+        "128": "Lesson03Spec.rnn_width before the RNN was widened, naming the model a study ran on"},
     "05_hierarchical_vrnn": {
         "0.05": "the shipped classifiers' scale floor (course_lib.evaluation.classifiers): a setting",
         "1100": "the end step of the classifier-loss ramp (HvrnnConfig), in the paper-vs-here table: a setting"},

@@ -4,7 +4,7 @@ import math
 
 import pytest
 import torch
-from conftest import load_tool
+from conftest import load_study
 from torch.nn import functional as F
 
 from course_lib.models.vae import gaussian_kl
@@ -322,10 +322,10 @@ def test_reproduce_registers_vae_lstm_and_the_corpus_keeps_its_names():
 
 
 def test_recipe_sweep_tool_runs_one_variant(tmp_path):
-    """tools/vae_lstm_sweep.py (the comparison behind the shipped recipe): one variant, 3 steps, every number."""
+    """study vae_lstm_sweep (the comparison behind the shipped recipe): one variant, 3 steps, every number."""
     import json
 
-    sweep = load_tool("vae_lstm_sweep")
+    sweep = load_study("vae_lstm_sweep")
     out = sweep.run(["paper_free_bits"], smoke=True, out_path=tmp_path / "r.json")
     res = json.loads((tmp_path / "r.json").read_text())["variants"]["paper_free_bits"]
     assert res == out["variants"]["paper_free_bits"] and res["steps"] == 3
@@ -392,10 +392,10 @@ def test_path_error_sources_known_answers():
 
 
 def test_path_error_tool_runs_one_recipe(tmp_path):
-    """tools/vae_lstm_path_error.py: the shipped models' sources and one retrained recipe (3 steps), every part."""
+    """study vae_lstm_path_error: the shipped models' sources and one retrained recipe (3 steps), every part."""
     import json
 
-    tool = load_tool("vae_lstm_path_error")
+    tool = load_study("vae_lstm_path_error")
     out = tool.run(["algorithm1_elbo_control_std_0.05"], smoke=True, out_path=tmp_path / "r.json")
     assert json.loads((tmp_path / "r.json").read_text()) == out
     assert set(out["shipped"]) == {"vae_lstm", "vae_lstm_paper"}

@@ -21,32 +21,32 @@ weighted by the window's frames: a walk that is behind is asked to go faster, an
 The previous rule (``progress="net"``: each window's net displacement per second, in any direction, at the curve's
 length / seconds) let walks turn back or sideways once the curve stretch ahead ran out and never made up a slow
 start: 1.48 / 1.33 / 0.38 m short of the ends of a line, a circle and an S-curve, against 0.025 / 0.041 / 0.020 m
-(tools/control_shortfall.py). A window whose control energy ends above ``retry_control`` (50; windows that follow
+(study control_shortfall). A window whose control energy ends above ``retry_control`` (50; windows that follow
 the curve end under 20) is searched again from 4x the candidates, fresh samples, and the better end is kept (ours,
 not the paper's): in the walking circle of lesson 04 one window drifted into poses the prior finds unlikely, and no
-later window came back (0.26 m from the circle on average, 1.47 m from its end, tools/control_window_energies.py);
+later window came back (0.26 m from the circle on average, 1.47 m from its end, study control_window_energies);
 with the retry, 0.029 m and 0.017 m. On seed 2 of the same circle the contact and prior terms failed a window before
 the control energy passed 50 and no later retry recovered (0.265 m, the end missed by 1.64 m;
-tools/control_circle_seed2.py), so a window whose total energy ends more than ``retry_rise`` (200) above the median
+study control_circle_seed2), so a window whose total energy ends more than ``retry_rise`` (200) above the median
 of the windows before it is searched again too (healthy windows stay within about 100 of it).
 sigma_fit^2 = 0.0025 m^2 (the paper: 0.5): against our prior's scale 0.5 let a 4-s walk along a 6-m line drift 0.60 m
 from it on average, 0.01 kept it to 0.09 m (seed 0); at 0.01 greedy steering or L-BFGS alone was still closer than
 ours on the mean of three seeds on four cases (the walking U-turn, the running S-curve, U-turn and polyline), at
 0.0025 ours is the closer on all four (0.025-0.052 m against the baselines' 0.038-0.088; 0.005 left the running
-S-curve to greedy steering, 0.071 against 0.070 m: tools/control_sigma_fit.py). The retry thresholds below
+S-curve to greedy steering, 0.071 against 0.070 m: study control_sigma_fit). The retry thresholds below
 (retry_control, retry_rise) were set at 0.01 and not re-measured at 0.0025, where the same offset costs 4x as much.
 The number of candidates, PSO and L-BFGS iterations are not given; ours are in `DesignConfig`. The variables are
 the RNN sampler's noise (eps, Gumbel) and d, not the frames themselves (rollout.py says why); L-BFGS holds the
 Gumbel variables (the mixture components) fixed.
 Eq. (18)'s contact labels c_i are the RNN's contact bits or a toe below 5 cm (``contact_height``, foot_skate's own
 height; ours): with the bits alone the walking S-curve, U-turn and polyline skated 0.27 / 0.17 / 0.29 m/s, from low
-toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, tools/control_contact_height.py).
+toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, study control_contact_height).
 Planting (ours, ``plant``): the designed motion's toes that are in contact (its pose's own contacts, foot low and slow)
 or below ``contact_height`` are then held
 still by the leg angles alone (planting.py, as denoising does); the root is not moved, so the curve's distance and end
 are the search's own.  Eq. (18) inside the energy left the walks skating 0.09-0.14 m/s on the mean of three seeds
 (low swing toes that still slide); lesson 04 section 4 measures the planted designs.
-``DesignConfig(space="frames")`` searches the paper's variables instead (tools/control_frame_space.py measures both:
+``DesignConfig(space="frames")`` searches the paper's variables instead (study control_frame_space measures both:
 over frames L-BFGS alone misses the curve's end by metres, and every frame-space search ends farther than ours).
 """
 

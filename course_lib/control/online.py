@@ -26,7 +26,7 @@ direction asked of one batch is the current heading turned towards the command b
 Within 1 s (3 batches) of a change of the speed command (by more than 10 % from the command at the last change), a
 batch whose net speed is still more than 10 % off gets a second L-BFGS pass (``speed_retry``): without it, 4 of 36
 running and walking changes over seeds 0-5 took 1.33-2.33 s, with it none took over 1 s
-(tools/control_online_retry.py).
+(study control_online_retry).
 The batch's speed is its net displacement / duration, not the mean per-frame speed of eq. (22): issue 14's
 feet-anchored model met the per-frame mean by zig-zagging (net speeds 0.05-1.2 m/s for a 0.8 command).
 """
@@ -65,13 +65,13 @@ class OnlineConfig:
     candidates: int = 4  # RNN samples per step; the best starts L-BFGS
     lbfgs_iterations: int = 5  # energy evaluations of L-BFGS per step (its max_iter and max_eval); the RNN's
     # samples keep its pace, so a speed change must come from L-BFGS: at 3 the runner never got back to 2.5 m/s
-    # after the speed-up; at 10, 18-19 frames/s (tools/control_online_budget.py)
+    # after the speed-up; at 10, 18-19 frames/s (study control_online_budget)
     sigma_speed: float = 0.05  # m/s, eq. (22)
     sigma_direction: float = 0.01  # rad, eq. (23); 0.03 took 2 s for a 180-degree command, 0.01 took 1 s
     max_turn: float = math.radians(60)  # the most the asked direction differs from the heading, per batch
     sample_bias: float = 1.0  # Graves' bias of the samples
     speed_retry: float = 0.1  # > 0: a batch whose net speed misses the command by more than this fraction (at least
-    # 0.05 m/s) gets a second L-BFGS pass (ours; 0: never; tools/control_online_retry.py) ...
+    # 0.05 m/s) gets a second L-BFGS pass (ours; 0: never; study control_online_retry) ...
     speed_retry_batches: int = 3  # ... within this many batches of a change of the speed command by more than that
     # fraction (0: any batch) ...
     speed_retry_iterations: int = 5  # ... of this many L-BFGS evaluations (3 left 2 of 36 changes over 1 s)

@@ -28,7 +28,7 @@ from course_lib.rotations import quat_slerp
 __all__ = ["SPIKE_ANGLE", "SPIKE_WINDOW", "despike", "median_deviation", "spike_mask"]
 
 SPIKE_ANGLE = 0.35  # rad: a joint this far from its running median is a spike.  Held-out clean clips (34, walks
-# and runs) reach 0.338 at most (a running knee's turn-around); tools/control_denoise_spikes.py measures the rest
+# and runs) reach 0.338 at most (a running knee's turn-around); study control_denoise_spikes measures the rest
 SPIKE_WINDOW = 3  # frames of the running median (odd; it ignores (window - 1) / 2 outliers in a row); 5 frames put
 # a running knee's turn-around 0.49 rad from its median
 

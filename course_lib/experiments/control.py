@@ -358,7 +358,7 @@ def refine_alone(motions: list, checkpoints: Path = CHECKPOINTS) -> list:
 
 def denoise_clips(first: int = 0, per_gait: int = 4) -> list:
     """The held-out walks then runs the denoising is measured on: clips first .. first + per_gait - 1 of each gait
-    (0-3: the scored clips of `denoise_eval`; 4-7: the tuning clips of tools/control_denoise_start.py)."""
+    (0-3: the scored clips of `denoise_eval`; 4-7: the tuning clips of study control_denoise_start)."""
     from course_lib.control.starts import held_out_clips
 
     return [m for g in ("walk", "run") for m in held_out_clips(g)[first:first + per_gait]]
@@ -452,7 +452,7 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
     sha = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]
     from course_lib.training import training_environment
 
-    # the host's torch cpu capability decides rounding, which the online search amplifies (tools/control_online_cpu.py)
+    # the host's torch cpu capability decides rounding, which the online search amplifies (study control_online_cpu)
     out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha, "workers": workers,
            "environment": training_environment()}
     times, by = {}, {}

@@ -52,7 +52,7 @@ class Lesson03Spec:
     rnn_steps: int = 6000  # teacher forcing on 50-frame windows, batch 20 (sec. 4.1.3); ~14 epochs
     # then fine-tuning stages (true frames, own predictions, steps): inputs alternate true frames and the
     # model's own predictions (not in the paper; see gmm_rnn.py "differs")
-    finetune: tuple = ()  # e.g. ((10, 10, 1000),); with absolute root means it hurt (tools/gmm_rnn_sweep.py)
+    finetune: tuple = ()  # e.g. ((10, 10, 1000),); with absolute root means it hurt (study gmm_rnn_sweep)
     finetune_lr: float = 5e-4
     sample_bias: float = 2.0  # Graves' sampling bias at generation (0 = the paper's sampling)
     sample_angle_noise: float = 0.3  # scale of the per-dimension draw in the joint angles (0: component means)
@@ -73,7 +73,7 @@ class Lesson03Spec:
     contact_smooth: int = 5  # frames over which the "root" contact handling's corrections are averaged
     window_stride: int = 5  # frames between training windows
     rnn_width: int = 256  # FC, LSTM and output widths of the RNN (the paper: 500; 128 jitters more: gmm_rnn_skate.py)
-    rnn_noise: float = 0.1  # sd of the input noise, normalised units (sec. 4.1.3: 0.05; tools/gmm_rnn_skate.py)
+    rnn_noise: float = 0.1  # sd of the input noise, normalised units (sec. 4.1.3: 0.05; study gmm_rnn_skate)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
     refiner_iterations: int = 3000  # at most this many adversarial rounds after the warm-up (sec. 4.2.2) ...
     refiner_updates: int = 2500  # ... and at most this many adversarial R updates (the CPU budget, ~4 min)
@@ -81,7 +81,7 @@ class Lesson03Spec:
     # the balance rule of sec. 4.2.2 on D's mean cross-entropy (chance ln 2): r doubles below d_loss_low (D too
     # strong) and halves above d_loss_high (D near chance), on the mean of the last schedule_smooth rounds; the
     # paper's 0.01 / 1 on single batches almost never fire on this scale, and with 0.1 / ln 2 D's loss stayed
-    # inside the band in half of the runs (0.5-0.7), so r never moved there (tools/gmm_rnn_refiner_recipes.py)
+    # inside the band in half of the runs (0.5-0.7), so r never moved there (study gmm_rnn_refiner_recipes)
     d_loss_low: float = 0.3
     d_loss_high: float = 0.6
     schedule_smooth: int = 5

@@ -48,7 +48,7 @@ STEPS = 5000  # optimiser steps per model (~27 epochs of the 5920 augmented trai
 BATCH = 32
 LR = 1e-3  # the paper: 1e-4 with a Noam schedule over 80k steps; ours is a short run
 # The LR falls (half cosine) from LR to LR_FLOOR x LR over the steps after LR_DECAY_FROM x STEPS (None: constant).
-# tools/moglow_lr_decay.py measured it against the constant LR of the earlier models, same 5000 steps: held-out NLL
+# study moglow_lr_decay measured it against the constant LR of the earlier models, same 5000 steps: held-out NLL
 # -155.1 vs -130.4 nats/frame (dropout model), zero-control stepping ratio 0.249-0.264 vs 0.301-0.314 (5 seeds).
 LR_DECAY_FROM = 0.6
 LR_FLOOR = 0.01

@@ -11,7 +11,7 @@ control, the VAE-LSTM gets 4 initial frames or none, plus the ground-truth contr
 error (root-relative; everyone gets the ground-truth control and 4 initial frames).  Beside the tables:
 the diversity of prior samples under one control (APD, path error of the model's own control) and
 whether the latent is used (`latent_diagnostics`: KL per dimension, what zeroing z changes).
-``VARIANTS`` are the recipes lesson 02 compares (tools/vae_lstm_sweep.py trains them).  Nothing runs
+``VARIANTS`` are the recipes lesson 02 compares (study vae_lstm_sweep trains them).  Nothing runs
 at import time.
 """
 
@@ -192,7 +192,7 @@ def prior_diversity(model, test_ds: WindowDataset, n_controls: int | None = None
     match by construction).  z1_pool: (M, U) z_1 values to draw from instead of N(0, I) (e.g. the
     4-frame posterior means of other clips: is the prior or the decoder short of diversity?); then
     only the Algorithm-1 entry is computed.  n_controls: the first test clips' controls (None: every test clip;
-    tools/vae_lstm_sweep_results.json used the first 10)."""
+    study vae_lstm_sweep_results used the first 10)."""
     from course_lib.evaluation import apd, path_distance
 
     x, starts = test_batch(test_ds)

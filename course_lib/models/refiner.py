@@ -50,12 +50,12 @@ Differs from the paper:
 - ``pose_lam`` > 0 (not in eq. 13): SimGAN's self-regularisation on the pose as well, pose_lam times the mean
   squared change (R(x) - x)^2 of every refined column but the contact bits, in sd units.  Eq. 13 keeps only the
   root near x; with D seeing five end effectors, R then changed the spine, shoulders and arms by 1.65 sd rms,
-  which alone raised the FID from 254 to 2060 (tools/gmm_rnn_refiner_selfreg.py, the clamp test).
+  which alone raised the FID from 254 to 2060 (study gmm_rnn_refiner_selfreg, the clamp test).
 - ``leg_pose_lam`` > 0 (not in eq. 13): the pose self-regularisation once more on the hip, knee and ankle angles
   alone (``contact_cleanup.leg_columns``), leg_pose_lam times their mean squared change.  With pose_lam alone, R's
   leg change raised GAN1's FID above the RNN's (lesson 03's clamp test: the RNN's legs put back lowered it in
   every refiner seed); at leg_pose_lam 30 the order RNN > GAN1 > GAN2 holds on the mean of 3 seeds
-  (tools/gmm_rnn_refiner_selfreg.py --leg-pose-lam, tools/gmm_rnn_refiner_legs_results.json).
+  (study gmm_rnn_refiner_selfreg --leg-pose-lam, study gmm_rnn_refiner_legs_results).
 - ``discriminator_joints="all"`` (not in eq. 12): D sees the floor-frame positions and velocities of every joint,
   not only the end effectors (R's input is unchanged).
 - ``discriminator_contacts=True`` (not in eq. 12, off in the paper's config, on for our GAN2): D also sees

@@ -39,7 +39,7 @@ Differs from the paper:
 - ``heading_weight`` (a term on Algorithm 1's running yaw-rate error, ``heading_loss``) is ours; the CPU preset sets
   it to 100 (lesson 02 section 9: the path from the model's own control drifts with its heading, which the per-frame
   likelihood hardly charges).  ``control_obs_std`` (a narrower likelihood on the 3 control channels) is ours too, off
-  in the preset (it did not lower the path error: ``tools/vae_lstm_path_error.py``).
+  in the preset (it did not lower the path error: ``study vae_lstm_path_error``).
 - ``VaeLstmConfig.cpu()`` shrinks the widths (listed there) so a model trains in minutes on a
   2-core CPU and its checkpoint stays under 5 MB; the paper trains 5000 epochs, we train minutes.
 """
