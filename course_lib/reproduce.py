@@ -21,6 +21,8 @@ from pathlib import Path
 import torch
 
 from course_lib.experiments import control, gmm_rnn, hvrnn, moglow, vae_lstm
+from course_lib.manifest import read_manifest
+from course_lib.outputs import check_outputs
 
 ROOT = Path(__file__).resolve().parent.parent
 CHECKPOINTS = ROOT / "checkpoints"
@@ -29,6 +31,17 @@ CHECKPOINTS = ROOT / "checkpoints"
 EXPERIMENTS = {name: (getattr(lesson, f"train_{name}"), getattr(lesson, f"eval_{name}"))
                for name, lesson in (("vae_lstm", vae_lstm), ("gmm_rnn", gmm_rnn), ("hvrnn", hvrnn),
                                     ("moglow", moglow), ("control", control))}
+
+
+def missing_checkpoints(experiment: str, checkpoints: Path) -> list[str]:
+    """The files the manifest in `checkpoints` lists as made by this lesson's command that are not there (all of
+    them, with the manifest, when the folder has no MANIFEST.json)."""
+    manifest = checkpoints / "MANIFEST.json"
+    if not manifest.is_file():
+        return [str(manifest)]
+    command = f"python -m course_lib.reproduce {experiment}"
+    files = [e["file"] for e in read_manifest(manifest).values() if e.get("command") == command and e.get("file")]
+    return [f for f in files if not (checkpoints / f).is_file()]
 
 
 def main(argv=None) -> int:
@@ -43,7 +56,20 @@ def main(argv=None) -> int:
     parser.add_argument("--checkpoints", type=Path, default=CHECKPOINTS, help="checkpoint folder (with MANIFEST.json)")
     parser.add_argument("--record", action="store_true",
                         help="with --eval-only: store the evaluation in the manifest as training does (vae_lstm)")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out file")
     args = parser.parse_args(argv)
+    if args.threads < 1:
+        parser.error(f"--threads must be at least 1, got {args.threads}")
+    if args.out is not None:
+        try:
+            check_outputs([args.out], overwrite=args.force, who="course_lib.reproduce")
+        except (FileExistsError, ValueError) as err:
+            parser.error(str(err))
+    if args.eval_only:  # every checkpoint the lesson evaluates must be there before any data work starts
+        missing = missing_checkpoints(args.experiment, args.checkpoints)
+        if missing:
+            parser.error(f"--eval-only {args.experiment}: {', '.join(missing)} not found in {args.checkpoints}; "
+                         f"train them with `python -m course_lib.reproduce {args.experiment}` or give --checkpoints")
     torch.set_num_threads(args.threads)
     train_fn, eval_fn = EXPERIMENTS[args.experiment]
     kw = {"seed": args.seed, "checkpoints": args.checkpoints}

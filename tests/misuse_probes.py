@@ -984,6 +984,34 @@ def _online_bad(speed, direction=0.0):
     return case
 
 
+def _load_model(lesson, name):
+    def case(tmp):
+        import importlib
+
+        importlib.import_module(f"course_lib.experiments.{lesson}").load_model(name)
+        return "loaded"
+    return case
+
+
+def _reproduce(*args, manifest: bool = True):
+    def case(tmp):
+        import shutil
+
+        from course_lib import reproduce
+
+        if manifest:
+            shutil.copy(ROOT / "checkpoints" / "MANIFEST.json", tmp / "MANIFEST.json")
+        _write(tmp / "mine.json", "{}")
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            try:
+                reproduce.main([a.replace("<tmp>", str(tmp)) for a in args])
+            except SystemExit as stop:
+                raise _ScriptError(f"SystemExit (exit {stop.code}): {_last_line(err)}") from None
+        return "ran"
+    return case
+
+
 def _fid_mixed_joints(tmp):
     from course_lib.evaluation import fid
 
@@ -1048,6 +1076,17 @@ def _writer_cases() -> list[Case]:
         Case("controllers", "OnlineController.step(-1, 0)", _online_bad(-1.0), "ValueError", "speed >= 0"),
         Case("controllers", "OnlineController.step(1, inf)", _online_bad(1.0, math.inf), "ValueError",
              "finite direction"),
+        Case("commands", "vae_lstm.load_model('vae')", _load_model("vae_lstm", "vae"), "KeyError", "choose one of"),
+        Case("commands", "hvrnn.load_model('VAE')", _load_model("hvrnn", "VAE"), "KeyError", "choose one of"),
+        Case("commands", "moglow.load_model('glow')", _load_model("moglow", "glow"), "KeyError", "choose one of"),
+        Case("commands", "reproduce moglow --eval-only with its checkpoints missing", _reproduce(
+            "moglow", "--eval-only", "--checkpoints", "<tmp>"), "_ScriptError", "moglow.pt"),
+        Case("commands", "reproduce hvrnn --eval-only on a folder without a manifest", _reproduce(
+            "hvrnn", "--eval-only", "--checkpoints", "<tmp>", manifest=False), "_ScriptError", "MANIFEST.json"),
+        Case("commands", "reproduce control --out over the user's file", _reproduce(
+            "control", "--eval-only", "--out", "<tmp>/mine.json"), "_ScriptError", "mine.json"),
+        Case("commands", "reproduce vae_lstm --threads 0", _reproduce("vae_lstm", "--threads", "0"), "_ScriptError",
+             "--threads"),
         Case("measures", "fid of 21-joint clips against a 2-joint one", _fid_mixed_joints, "ValueError",
              "clip 2 has 2 joints"),
     ]

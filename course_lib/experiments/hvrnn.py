@@ -274,7 +274,10 @@ def load_model(name: str, checkpoints: Path = CHECKPOINTS):
     """The shipped checkpoint of generator `name` (eval mode)."""
     from course_lib.training import load_checkpoint
 
-    spec = model_specs()[name]
+    specs = model_specs()
+    if name not in specs:
+        raise KeyError(f"load_model: no lesson-05 generator {name!r}; choose one of {', '.join(specs)}")
+    spec = specs[name]
     return load_checkpoint(checkpoints / f"{name}.pt", spec.cls, type(spec.config))
 
 

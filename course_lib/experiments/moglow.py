@@ -172,6 +172,8 @@ def load_model(name: str, checkpoints: Path = CHECKPOINTS):
     from course_lib.models.moglow import MoGlow, MoGlowConfig
     from course_lib.training import load_checkpoint
 
+    if name not in MODELS:
+        raise KeyError(f"load_model: no lesson-06 model {name!r}; choose one of {', '.join(MODELS)}")
     return load_checkpoint(checkpoints / f"{name}.pt", MoGlow, MoGlowConfig).eval()
 
 

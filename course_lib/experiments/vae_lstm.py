@@ -114,7 +114,10 @@ def load_model(name: str, checkpoints: Path = CHECKPOINTS):
     """The shipped checkpoint of lesson-02 model ``name`` (eval mode)."""
     from course_lib.training import load_checkpoint
 
-    cls, config, _ = lesson02_models()[name]
+    models = lesson02_models()
+    if name not in models:
+        raise KeyError(f"load_model: no lesson-02 model {name!r}; choose one of {', '.join(models)}")
+    cls, config, _ = models[name]
     return load_checkpoint(checkpoints / f"{name}.pt", cls, type(config))
 
 
