@@ -4,6 +4,7 @@
 #   make course      execute every notebook (COURSE_MODE=class unless given), build the site in site/ (Sphinx; offline)
 #   make site        build the site in site/ from the committed notebooks (executed in CI mode), no execution
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
+#   make test-slow   the slow tests (a lone clone, Blender, the site in chromium, every exercise); .ci/run runs both
 #   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
 #   make data        the synthetic datasets in data/ (kept once made; `rm -r data` to regenerate)
 #   make student     student copies (exercises without solutions, nbgrader) in student/, then JupyterLab there
@@ -28,10 +29,10 @@ DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 # the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
 HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
-.PHONY: help setup data course site test lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
+.PHONY: help setup data course site test test-slow lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
 
 help:
-	@sed -n '4,14p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,15p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)
@@ -85,9 +86,14 @@ lint: setup
 
 unit: setup
 	@start=$$(date +%s); \
-	echo "COURSE_MODE=ci $(PY) -m pytest -n 2 tests"; \
-	COURSE_MODE=ci OMP_NUM_THREADS=1 MPLBACKEND=Agg $(HEADLESS) $(PY) -m pytest -n 2 tests; \
+	echo "COURSE_MODE=ci $(PY) -m pytest -n 2 -m 'not slow' tests"; \
+	COURSE_MODE=ci OMP_NUM_THREADS=1 MPLBACKEND=Agg $(HEADLESS) $(PY) -m pytest -n 2 -m "not slow" tests; \
 	echo "unit: tests took $$(( $$(date +%s) - start )) s"
+
+test-slow: setup
+	@start=$$(date +%s); \
+	COURSE_MODE=ci OMP_NUM_THREADS=1 MPLBACKEND=Agg $(HEADLESS) $(PY) -m pytest -n 2 -m slow tests; \
+	echo "test-slow: tests took $$(( $$(date +%s) - start )) s"
 
 # nbval re-executes each committed notebook in the venv's kernel and compares the
 # `# NBVAL_CHECK_OUTPUT` cells.  With no notebooks yet there is nothing to run (pytest would exit 5).

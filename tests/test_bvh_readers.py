@@ -22,6 +22,8 @@ import pytest
 from course_lib.bvh import read_bvh, write_bvh
 from course_lib.motion import Motion
 
+pytestmark = pytest.mark.slow  # make test-slow: one Blender process per module
+
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
 ROOT_OFFSET_FILE = DATA / "cmu_07_01_root_offset.bvh"

@@ -35,8 +35,9 @@ sys.path.insert(0, str(REPO / "tools"))
 import build_site  # noqa: E402
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-pytestmark = pytest.mark.skipif(CHROMIUM is None and os.environ.get("CI") != "true",
-                                reason="needs Debian's chromium (.ci/run installs it)")
+pytestmark = [pytest.mark.slow,  # make test-slow
+              pytest.mark.skipif(CHROMIUM is None and os.environ.get("CI") != "true",
+                                 reason="needs Debian's chromium (.ci/run installs it)")]
 
 PROBE = """<script>
 window.addEventListener('load', function () {

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # make test-slow: a clone, a notebook and a wheel
+
 REPO = Path(__file__).resolve().parents[1]
 CLIP = "course_lib/data/cmu_07_01_walk.bvh"
 CARD = "course_lib/data/README.md"

@@ -94,6 +94,7 @@ def test_student_copy_has_no_solutions_and_no_outputs(lesson):
     assert release(lesson).cells[0].source == nb.cells[0].source  # the release notebook is not modified
 
 
+@pytest.mark.slow  # make test-slow: runs every exercise section twice
 @pytest.mark.parametrize("lesson", LESSONS)
 def test_stubs_fail_every_check_and_solutions_pass(lesson):
     nb = release(lesson)
