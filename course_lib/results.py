@@ -5,7 +5,7 @@ the studies' results through one function.
 studies/ before they write a result to the manifest or a JSON file, so that a re-run on another CPU changes a
 recorded number only where it changes in its sixth decimal (or the ``digits`` asked).
 
-`study(name)` reads ``studies/<lesson>/<name>.json`` (each study's result, beside the script that wrote it);
+`study_result(name)` reads ``studies/<lesson>/<name>.json`` (each study's result, beside the script that wrote it);
 `provenance` is what a study records about itself: its command, the commit and the checkpoints' sha256.
 """
 
@@ -22,7 +22,7 @@ import numpy as np
 
 from course_lib.checksums import sha256_file
 
-__all__ = ["provenance", "rounded", "studies_folder", "study"]
+__all__ = ["provenance", "rounded", "studies_folder", "study_result"]
 
 STUDIES_ENV = "COURSE_STUDIES"  # where studies/ is, for a course_lib installed apart from its repository
 
@@ -36,7 +36,7 @@ def studies_folder() -> Path:
     return folder
 
 
-def study(name: str) -> dict:
+def study_result(name: str) -> dict:
     """The result of the study ``name`` (its JSON's file name, with or without .json), from studies/<lesson>/."""
     file = name if name.endswith(".json") else f"{name}.json"
     found = sorted(studies_folder().glob(f"*/{file}"))

@@ -226,7 +226,7 @@ def test_build_site_reads_each_lesson_for_the_landing_page(tmp_path):
     assert "{doc}`Open the lesson <02_vae_lstm>`" in page and "* **What fails:** prior samples are alike." in page
     assert "**Time:** (not stated in the lesson)" in page and "no paper is reproduced" in page
     assert page.count("```{toctree}") == 1 and "COURSE_MODE=ci" in page
-    assert "\n02_vae_lstm\n03_x\ntroubleshooting\n```" in page
+    assert "\n02_vae_lstm\n03_x\nreproduction_notes\nstudies_02_vae_lstm\n" in page and "\ntroubleshooting\n```" in page
 
 
 def test_reproduce_runs_manifest_commands_in_order(tmp_path, capsys):

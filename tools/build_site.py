@@ -102,6 +102,27 @@ def lesson_info(notebook: Path) -> dict:
             "prerequisites": _field(head, "Prerequisites"), "time": _field(head, "Time"), "paper": verdicts}
 
 
+STUDIES = CONF_DIR.parents[1] / "studies"  # the lab: studies/README.md and one README.md per lesson folder
+
+
+def study_pages() -> dict[str, str]:
+    """The "Reproduction notes": page name -> Markdown, from studies/README.md (the index) and each
+    studies/<lesson>/README.md, links between them pointed at the pages."""
+    if not (STUDIES / "README.md").is_file():
+        return {}
+    folders = sorted(p.parent.name for p in STUDIES.glob("*/README.md"))
+
+    def relink(text: str) -> str:
+        for name in folders:
+            text = re.sub(rf"\]\((?:\.\./)?(?:studies/)?{name}/(?:README\.md)?\)", f"](studies_{name}.md)", text)
+        return re.sub(r"\]\((?:\.\./)?README\.md\)", "](reproduction_notes.md)", text)
+
+    pages = {"reproduction_notes": relink((STUDIES / "README.md").read_text(encoding="utf-8"))}
+    for name in folders:
+        pages[f"studies_{name}"] = relink((STUDIES / name / "README.md").read_text(encoding="utf-8"))
+    return pages
+
+
 def extra_pages() -> list[Path]:
     """The site's pages beyond the lessons (tools/site/pages/*.md: troubleshooting, ...), in name order."""
     return sorted((CONF_DIR / "pages").glob("*.md"))
@@ -117,7 +138,7 @@ def landing_page(rows: list[dict], mode: str) -> str:
            f"(`COURSE_MODE={mode}`); the notebooks themselves are in `notebooks/`, the student copies "
            "with the exercises to solve come from `make student`. Search is at the top left; it works offline.",
            "", "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
-    out += [r["name"] for r in rows] + [page.stem for page in extra_pages()] + ["```", ""]
+    out += [r["name"] for r in rows] + list(study_pages()) + [page.stem for page in extra_pages()] + ["```", ""]
     for r in rows:
         out += [f"## {r['title']}", "", f"{{doc}}`Open the lesson <{r['name']}>` (`{r['name']}.ipynb`)", ""]
         out += [f"**Prerequisites:** {r['prerequisites'] or '(not stated in the lesson)'}", "",
@@ -167,6 +188,8 @@ def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
         rows.append(lesson_info(nb))
     for page in extra_pages():
         shutil.copy2(page, src / page.name)
+    for name, text in study_pages().items():
+        (src / f"{name}.md").write_text(text, encoding="utf-8")
     (src / "index.md").write_text(landing_page(rows, mode), encoding="utf-8")
     return rows
 
