@@ -280,7 +280,10 @@ def test_makefile_targets_run_the_right_commands():
     # Agg in a notebook kernel replaces the inline backend: the executed lessons would lose their figures
     assert "env -u MPLBACKEND" in course and "MPLBACKEND=Agg" not in course
     test = dry("test")
-    assert "ruff check ." in test and "pytest -n 2 tests" in test
+    assert "ruff check ." in test and "pytest -n 2 -m \"not slow\" tests" in test
+    slow = dry("test-slow")
+    assert "pytest -n 2 -m slow tests" in slow and "make -C" not in slow  # the slow half: run by .ci/run after test
+    assert "make test-slow" in (REPO / ".ci" / "run").read_text()
     for option in ["COURSE_MODE=ci TQDM_DISABLE=1", "VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow",
                    "PYVISTA_OFF_SCREEN=true", "--nbval-lax --nbval-current-env --nbval-cell-timeout=300"]:
         assert option in test, option
