@@ -724,17 +724,22 @@ def _noisy_over_card(tmp):
     return _script(tmp, "make_noisy.py", "--input", str(clean), "--out", str(tmp / "noisy.npz"))
 
 
+def _run_main(main, argv) -> str:
+    """Call a command's main(argv); argparse's refusal (SystemExit) becomes _ScriptError with its message."""
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            main(list(argv))
+        except SystemExit as stop:
+            raise _ScriptError(f"SystemExit (exit {stop.code}): {_last_line(err)}") from None
+    return "ran"
+
+
 def _benchmark(*args):
     def case(tmp):
         from course_lib import benchmark
 
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err):
-            try:
-                benchmark.main(list(args))
-            except SystemExit as stop:
-                raise _ScriptError(f"SystemExit (exit {stop.code}): {_last_line(err)}") from None
-        return "ran"
+        return _run_main(benchmark.main, args)
     return case
 
 
@@ -784,13 +789,7 @@ def _lesson_with_exercise(folder: Path) -> Path:
 
 def _student(*args):
     def run(tmp):
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-            try:
-                _student_tool().main(list(args))
-            except SystemExit as stop:
-                raise _ScriptError(f"SystemExit (exit {stop.code}): {_last_line(err)}") from None
-        return "written"
+        return _run_main(_student_tool().main, args)
     return run
 
 
@@ -1002,13 +1001,7 @@ def _reproduce(*args, manifest: bool = True):
         if manifest:
             shutil.copy(ROOT / "checkpoints" / "MANIFEST.json", tmp / "MANIFEST.json")
         _write(tmp / "mine.json", "{}")
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-            try:
-                reproduce.main([a.replace("<tmp>", str(tmp)) for a in args])
-            except SystemExit as stop:
-                raise _ScriptError(f"SystemExit (exit {stop.code}): {_last_line(err)}") from None
-        return "ran"
+        return _run_main(reproduce.main, [a.replace("<tmp>", str(tmp)) for a in args])
     return case
 
 
