@@ -27,7 +27,7 @@ Measures (all from `course_lib.evaluation`): foot skate, ground penetration, jit
 FID / IS / C2ST on the shared classifiers' features, APD of several samples from one start, control
 following (root-path and speed error) where a model follows a control of its own making, stability over
 20 s (in the mocap's root-height range, not frozen), held-out likelihood where a model has one, frames per
-second on one core, parameters and training time (MANIFEST.json).  A blank always says why.
+second on one core, parameters and training time (results/<lesson>.json).  A blank always says why.
 
 Differs from the issue: the GMM-RNN's online-control row runs on fewer clips (the controller makes 35-70
 frames/s on a shared core) and has no 20-s test (see BLANKS); the refined GMM-RNN uses the refiner of
@@ -219,10 +219,12 @@ def _size(*modules) -> int:
     return int(sum(p.numel() for m in modules for p in m.parameters()))
 
 
-def _manifest_seconds(checkpoints: Path, *names: str) -> float:
-    """Summed training seconds of the named checkpoints (the manifest's train_seconds or seconds)."""
-    manifest = json.loads((checkpoints / "MANIFEST.json").read_text())
-    metrics = [manifest[n]["metrics"] for n in names]
+def _recorded_seconds(checkpoints: Path, *names: str) -> float:
+    """Summed training seconds of the named checkpoints (their recorded train_seconds or seconds, in their
+    lessons' results files)."""
+    from course_lib.training import recorded_metrics
+
+    metrics = [recorded_metrics(checkpoints / f"{n}.pt") for n in names]
     return float(sum(m.get("train_seconds", m.get("seconds", 0.0)) for m in metrics))
 
 
@@ -264,7 +266,7 @@ class Lesson02:
         self.lesson, self.name, self.checkpoint = lesson02, label, name
         self.model = lesson02.load_model(name, checkpoints)
         self.controlled = name == "vae_lstm"
-        self.params, self.train_seconds = _size(self.model), _manifest_seconds(checkpoints, name)
+        self.params, self.train_seconds = _size(self.model), _recorded_seconds(checkpoints, name)
 
     def _features(self, p: Protocol, x: torch.Tensor, control: torch.Tensor, seed: int) -> torch.Tensor:
         """x (n, >= context, 66) normalised starts, control (n, T, 3) -> features (n, T, 66) (own control)."""
@@ -318,8 +320,8 @@ class GmmRnn:
         self.model, refiners, self.stats = lesson03.load_models(checkpoints, 0)
         self.params = _size(self.model, refiners["GAN2"]) if refined else _size(self.model)
         seeds = [f"refiner_gan2_seed{s}" for s in range(3)] if refined else []
-        self.train_seconds = _manifest_seconds(checkpoints, "gmm_rnn") + (
-            _manifest_seconds(checkpoints, *seeds) / 3 if refined else 0.0)  # the RNN + a refiner's mean
+        self.train_seconds = _recorded_seconds(checkpoints, "gmm_rnn") + (
+            _recorded_seconds(checkpoints, *seeds) / 3 if refined else 0.0)  # the RNN + a refiner's mean
 
     def _run(self, p: Protocol, idx, seed: int, frames: int) -> tuple[np.ndarray, list]:
         starts = [p.clips[i].resample(FPS)[p.c0 - 2:] for i in idx]  # the context's last two frames on
@@ -366,7 +368,7 @@ class OnlineControl:
         from course_lib.control.rnn_prior import RnnPrior
 
         self.prior = RnnPrior.from_checkpoints(checkpoints)
-        self.params, self.train_seconds = _size(self.prior.model), _manifest_seconds(checkpoints, "gmm_rnn")
+        self.params, self.train_seconds = _size(self.prior.model), _recorded_seconds(checkpoints, "gmm_rnn")
 
     def _one(self, clip: Motion, c0: int, frames: int, seed: int) -> np.ndarray:
         from course_lib.control.online import OnlineController
@@ -402,7 +404,7 @@ class Hvrnn:
 
         self.lesson, self.name = lesson05, label
         self.model = lesson05.load_model(name, checkpoints)
-        self.params, self.train_seconds = _size(self.model), _manifest_seconds(checkpoints, name)
+        self.params, self.train_seconds = _size(self.model), _recorded_seconds(checkpoints, name)
 
     def _run(self, p: Protocol, idx, seed: int, frames: int) -> np.ndarray:
         from course_lib.datasets import ACTIONS, STYLES
@@ -441,7 +443,7 @@ class MoGlowRow:
         self.model = lesson06.load_model("moglow", checkpoints)
         self.stats = load_stats(lesson06.stats_file(checkpoints))
         self.fixed = FixedDofs.from_stats(*self.stats).mask[:63]
-        self.params, self.train_seconds = _size(self.model), _manifest_seconds(checkpoints, "moglow")
+        self.params, self.train_seconds = _size(self.model), _recorded_seconds(checkpoints, "moglow")
 
     def data(self, p: Protocol, idx=None, raw_control: np.ndarray | None = None):
         """-> lesson 06's MoGlowData holding the clips (idx: these) at 20 fps as its held-out set; raw_control

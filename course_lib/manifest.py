@@ -1,7 +1,9 @@
 """The checkpoint manifest: which file in checkpoints/ is which, with its sha256 and the command that made it.
 
 ``checkpoints/MANIFEST.json`` maps a name (the file's path relative to the manifest, without suffix) to an
-entry: file, sha256, bytes, command, and for a model its config, class and training environment.  Every file
+entry: file, sha256, bytes, command, course_lib version, and for a model its config, class and training
+environment: provenance only (what a training or evaluation measured is in ``results/``, `course_lib.results`).
+Every file
 the course loads from checkpoints/ (weights and normalisation statistics) is verified here before it is read:
 its sha256 must match its entry or, for a copy elsewhere that no manifest lists, its ``.sha256`` sidecar.
 

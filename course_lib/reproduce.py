@@ -7,9 +7,9 @@
     python -m course_lib.reproduce control [--eval-only]   # lesson 04, course_lib/experiments/control.py (no training)
 
 Without --eval-only: data, train every model of the lesson (or those named in --only), save the
-checkpoints and record the results in checkpoints/MANIFEST.json; with it: the results from the
-shipped checkpoints.  Each lesson registers one entry in ``EXPERIMENTS`` (name -> (train_fn,
-eval_fn)).  Nothing runs at import time.
+checkpoints (provenance in checkpoints/MANIFEST.json) and record the results in results/<name>.json; with it:
+the results from the shipped checkpoints.  Each lesson registers one entry in ``EXPERIMENTS`` (name ->
+(train_fn, eval_fn)).  Nothing runs at import time.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def main(argv=None) -> int:
                         help="train only these models (others: checkpoints); control: measure only these parts")
     parser.add_argument("--checkpoints", type=Path, default=CHECKPOINTS, help="checkpoint folder (with MANIFEST.json)")
     parser.add_argument("--record", action="store_true",
-                        help="with --eval-only: store the evaluation in the manifest as training does (vae_lstm)")
+                        help="with --eval-only: store the evaluation in results/ as training does (vae_lstm)")
     parser.add_argument("--force", action="store_true", help="replace an existing --out file")
     args = parser.parse_args(argv)
     if args.threads < 1:

@@ -1,9 +1,20 @@
-"""Results for JSON: every experiment and study records its numbers rounded the same way, and the lessons read
-the studies' results through one function.
+"""Results for JSON: every experiment and study records its numbers rounded the same way; the lessons' recorded
+results live in ``results/<name>.json``, and the lessons read the studies' results through one function.
 
 `rounded` is used by the lessons' experiment modules (course_lib/experiments/), the benchmark and the studies in
-studies/ before they write a result to the manifest or a JSON file, so that a re-run on another CPU changes a
-recorded number only where it changes in its sixth decimal (or the ``digits`` asked).
+studies/ before they write a result to a JSON file, so that a re-run on another CPU changes a recorded number
+only where it changes in its sixth decimal (or the ``digits`` asked).
+
+The lessons' results (DESIGN.md, "Layout"): one file per reproduction command, ``results/<name>.json`` for
+``python -m course_lib.reproduce NAME``, ``{"command": ..., "checkpoints": {entry: metrics}, ...}``: what each
+checkpoint's training recorded (its curves, seconds, the evaluation a lesson stores with its main model) under
+the checkpoint's manifest name, and whatever else the lesson records (lesson 04's "results").  The manifest
+(`course_lib.manifest`) keeps provenance only.  `results_file` says where a lesson's file is: the repository's
+``results/`` for its own ``checkpoints/``, ``<folder>/results/`` for any other checkpoint folder (a scratch
+copy, a test's tmp folder), so that work there never touches the shipped results.  `read_results`,
+`update_results`, `checkpoint_metrics` and `record_checkpoint_metrics` read and write them (the last two for a
+checkpoint file, through its manifest entry: `training.save_checkpoint` / `record_metrics` / `recorded_metrics`
+call them).
 
 `study_result(name)` reads ``studies/<lesson>/<name>.json`` (each study's result, beside the script that wrote it);
 `provenance` is what a study records about itself: its command, the commit and the checkpoints' sha256.
@@ -11,18 +22,24 @@ recorded number only where it changes in its sixth decimal (or the ``digits`` as
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shlex
 import subprocess
 import sys
+import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from course_lib.checksums import sha256_file
+from course_lib.manifest import entry_name, manifest_path, read_manifest
 
-__all__ = ["provenance", "rounded", "studies_folder", "study_result"]
+__all__ = ["checkpoint_metrics", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
+           "results_file", "results_folder", "results_name", "rounded", "studies_folder", "study_result",
+           "update_results"]
 
 STUDIES_ENV = "COURSE_STUDIES"  # where studies/ is, for a course_lib installed apart from its repository
 
@@ -75,3 +92,156 @@ def rounded(d, digits: int = 6):
     if isinstance(d, (list, tuple)):
         return [rounded(v, digits) for v in d]
     return round(float(d), digits) if isinstance(d, (float, np.floating)) else d
+
+
+# ----------------------------------------------------------------------------- the lessons' results files
+
+_ROOT = Path(__file__).resolve().parents[1]
+REPRODUCE = "python -m course_lib.reproduce"
+
+
+def results_folder(checkpoints: str | os.PathLike) -> Path:
+    """Where the results of the checkpoints in ``checkpoints`` go: the repository's results/ for its own
+    checkpoints/ folder, ``<checkpoints>/results/`` for any other folder (tests and scratch copies stay apart)."""
+    checkpoints = Path(checkpoints)
+    if checkpoints.resolve() == (_ROOT / "checkpoints").resolve():
+        return _ROOT / "results"
+    return checkpoints / "results"
+
+
+def results_file(name: str, checkpoints: str | os.PathLike = _ROOT / "checkpoints") -> Path:
+    """The results file of reproduction ``name`` (or of a checkpoint without one) for ``checkpoints``."""
+    if not name or "/" in name or name.startswith("."):
+        raise ValueError(f"results_file: {name!r} is not a results name (a lesson command's name, e.g. 'gmm_rnn')")
+    return results_folder(checkpoints) / f"{name}.json"
+
+
+def results_name(command: str | None, entry: str) -> str:
+    """Which results file a checkpoint's metrics go to: NAME of its command ``python -m course_lib.reproduce NAME``,
+    else the checkpoint's own manifest name ``entry`` (its last path component)."""
+    words = _reproduce_words(command)
+    return words[3] if words else entry.rsplit("/", 1)[-1]
+
+
+def _reproduce_words(command: str | None) -> list[str]:
+    """The words of ``python -m course_lib.reproduce NAME ...``; [] for any other command."""
+    try:
+        words = shlex.split(command or "")
+    except ValueError:
+        return []
+    return words if words[:3] == REPRODUCE.split() and len(words) > 3 else []
+
+
+def _command_of(name: str) -> str:
+    return f"{REPRODUCE} {name}"
+
+
+def read_results(name: str, checkpoints: str | os.PathLike = _ROOT / "checkpoints") -> dict:
+    """The results file of ``name`` as a dict; FileNotFoundError (naming the command that writes it) when absent,
+    ValueError when it is not a JSON object."""
+    file = results_file(name, checkpoints)
+    if not file.is_file():
+        raise FileNotFoundError(f"{file} not found: it is written by the reproduction command ({_command_of(name)} "
+                                "for a lesson) when it trains or records its evaluation")
+    try:
+        data = json.loads(file.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ValueError(f"{file} is not valid JSON ({err}); restore it (git checkout -- {file}) or rerun "
+                         f"{_command_of(name)}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("checkpoints", {}), dict):
+        raise ValueError(f"{file} is malformed: expected an object with a 'checkpoints' object")
+    return data
+
+
+def recorded(name: str, *keys: str, checkpoints: str | os.PathLike = _ROOT / "checkpoints"):
+    """``read_results(name)[keys[0]][keys[1]]...``; a missing key is a KeyError that names the file and the
+    command that records it."""
+    value = read_results(name, checkpoints)
+    for i, key in enumerate(keys):
+        if not isinstance(value, dict) or key not in value:
+            raise KeyError(f"{results_file(name, checkpoints)} has no {'/'.join(keys[:i + 1])}: record it with "
+                           f"{_command_of(name)}")
+        value = value[key]
+    return value
+
+
+def _dumps(x, level: int = 0) -> str:
+    """JSON with one space of indent per level, a list of plain values (a training curve) on one line."""
+    if isinstance(x, dict) and x:
+        pad = " " * (level + 1)
+        items = ",\n".join(f"{pad}{json.dumps(k)}: {_dumps(v, level + 1)}" for k, v in x.items())
+        return "{\n" + items + "\n" + " " * level + "}"
+    if isinstance(x, list) and any(isinstance(v, (dict, list)) for v in x):
+        pad = " " * (level + 1)
+        return "[\n" + ",\n".join(pad + _dumps(v, level + 1) for v in x) + "\n" + " " * level + "]"
+    return json.dumps(x)
+
+
+def update_results(name: str, change: Callable[[dict], None],
+                   checkpoints: str | os.PathLike = _ROOT / "checkpoints", *, command: str | None = None) -> dict:
+    """Read-modify-write the results file of ``name`` under an exclusive lock: ``change(data)`` edits the dict in
+    place ({"command", "checkpoints": {}} for a new file; ``command`` defaults to the lesson's reproduction command).
+    Returns what was written."""
+    file = results_file(name, checkpoints)
+    file.parent.mkdir(parents=True, exist_ok=True)
+    key = hashlib.sha256(str(file.resolve()).encode()).hexdigest()[:16]
+    lock = open(Path(tempfile.gettempdir()) / f"course_lib_results_{key}.lock", "w")
+    try:
+        try:
+            import fcntl
+
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        except ImportError:  # Windows: no advisory locks; single-writer use is fine
+            pass
+        data = read_results(name, checkpoints) if file.exists() else {}
+        data = {"command": None, "checkpoints": {}, **data}  # these two first in a new file
+        data["command"] = command or data["command"] or _command_of(name)
+        change(data)
+        data["checkpoints"] = dict(sorted(data["checkpoints"].items()))
+        data = json.loads(json.dumps(data))  # plain JSON values (str keys), as a reader will see them
+        tmp = file.with_suffix(".json.tmp")
+        tmp.write_text(_dumps(data) + "\n")
+        os.replace(tmp, file)
+    finally:
+        lock.close()
+    return data
+
+
+def _checkpoint_key(path: str | os.PathLike, manifest: str | os.PathLike | None) -> tuple[str, str, Path, dict]:
+    """A checkpoint file -> (results name, manifest name, checkpoint folder, manifest entry); KeyError without one."""
+    path = Path(path)
+    mpath = manifest_path(path, manifest)
+    name = entry_name(path, mpath)
+    table = read_manifest(mpath) if mpath.exists() else {}
+    if name not in table:
+        raise KeyError(f"{mpath} has no entry {name!r}; build it with the lesson's reproduction command")
+    entry = table[name]
+    return results_name(entry.get("command"), name), name, mpath.parent, entry
+
+
+def checkpoint_metrics(path: str | os.PathLike, manifest: str | os.PathLike | None = None) -> dict:
+    """What a checkpoint's training (and its lesson's evaluation) recorded about it: its entry in its results file
+    ({} when nothing was recorded).  KeyError when the manifest does not list the checkpoint."""
+    lesson, name, folder, _ = _checkpoint_key(path, manifest)
+    if not results_file(lesson, folder).is_file():
+        return {}
+    return read_results(lesson, folder)["checkpoints"].get(name, {})
+
+
+def record_checkpoint_metrics(path: str | os.PathLike, metrics: dict | None, *,
+                              manifest: str | os.PathLike | None = None, merge: bool = False) -> dict:
+    """Store a checkpoint's metrics in its results file: replace its entry (``merge=False``: a fresh training;
+    None drops a stale one) or merge ``metrics`` into it.  The checkpoint must have a manifest entry.  Returns
+    the checkpoint's metrics as stored."""
+    lesson, name, folder, entry = _checkpoint_key(path, manifest)
+    if metrics is None and not merge and not results_file(lesson, folder).is_file():
+        return {}
+    command = None if _reproduce_words(entry.get("command")) else entry.get("command")  # a lesson's: its NAME's
+
+    def change(data):
+        if metrics is None and not merge:
+            data["checkpoints"].pop(name, None)
+        else:
+            data["checkpoints"][name] = {**(data["checkpoints"].get(name, {}) if merge else {}), **(metrics or {})}
+
+    return update_results(lesson, change, folder, command=command)["checkpoints"].get(name, {})

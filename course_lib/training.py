@@ -6,9 +6,10 @@ The trainer knows nothing about any model (minGPT's trainer): it only calls
 ``model.loss(batch) -> dict`` whose ``"loss"`` entry is minimised; every other
 entry (scalars or small vectors such as a KL per latent dimension) is logged in
 a :class:`History` (history.py).  Checkpoints are ``state_dict`` + JSON config + course_lib
-version, hashed with sha256 and listed in ``checkpoints/MANIFEST.json`` together
+version, hashed with sha256 and listed in ``checkpoints/MANIFEST.json`` (provenance only) together
 with the one command that reproduces them, and in a sidecar ``<file>.sha256`` beside the
-file (see `course_lib.checksums`); they are always loaded with
+file (see `course_lib.checksums`); what a training measured (its metrics) goes to its lesson's
+``results/<name>.json`` (`course_lib.results`); they are always loaded with
 ``torch.load(..., weights_only=True)``, and only after their sha256 matched the manifest's
 entry or, for a file the manifest does not list (a copy elsewhere), its sidecar.
 """
@@ -32,6 +33,7 @@ from . import __version__
 from .checksums import sha256_file, write_sidecar
 from .history import History
 from .manifest import entry_name, manifest_path, read_manifest, update_manifest, verify_file
+from .results import checkpoint_metrics, record_checkpoint_metrics
 
 __all__ = [
     "History",
@@ -230,7 +232,10 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
     config: the model's config dataclass.  command: the one shell command that reproduces this file.
     manifest: defaults to ``MANIFEST.json`` next to ``path``.  environment: the entry's "trained_on"; None (a
     fresh training) records `training_environment()`, a re-save passes the entry's own ({} when unknown: no field).
-    Returns the manifest entry.
+    metrics: what the training measured, stored as the checkpoint's entry of its results file
+    (`course_lib.results.results_file`: ``results/<NAME>.json`` for the command ``python -m course_lib.reproduce
+    NAME``, else ``results/<checkpoint name>.json``; None drops an entry recorded before).
+    Returns the manifest entry (provenance only; `recorded_metrics` reads the metrics back).
     """
     path = Path(path)
     if not dataclasses.is_dataclass(config) or isinstance(config, type):
@@ -255,37 +260,31 @@ def save_checkpoint(model: torch.nn.Module, config, path: str | os.PathLike, *, 
         "file": os.path.relpath(path.resolve(), mpath.resolve().parent).replace(os.sep, "/"),
         "sha256": sha256_file(path), "bytes": path.stat().st_size, "config": config_dict,
         "model_class": type(model).__name__, "command": command, "course_lib_version": __version__,
-        "metrics": _jsonable(metrics or {}),
     }
     trained_on = training_environment() if environment is None else environment
     if trained_on:
         entry["trained_on"] = _jsonable(trained_on)
     update_manifest(mpath, entry_name(path, mpath), entry)
+    record_checkpoint_metrics(path, None if metrics is None else _jsonable(metrics), manifest=mpath)
     return entry
 
 
 def record_metrics(path: str | os.PathLike, model_cls, config_cls, **metrics) -> dict:
-    """Merge ``metrics`` into a shipped checkpoint's manifest entry, weights, config and command unchanged (the
-    file is re-saved from its own state): where a reproduction stores its evaluation for the notebooks.
-    Returns the new entry."""
+    """Merge ``metrics`` into a shipped checkpoint's recorded metrics (its entry of its results file), the file,
+    its weights, config, command and manifest entry unchanged: where a reproduction stores its evaluation for
+    the notebooks.  The checkpoint is loaded first (its sha256 verified, as a ``model_cls``).  Returns its
+    manifest entry."""
     path = Path(path)
-    model = load_checkpoint(path, model_cls, config_cls)
+    load_checkpoint(path, model_cls, config_cls)
     mpath = manifest_path(path, None)
-    entry = read_manifest(mpath)[entry_name(path, mpath)]
-    return save_checkpoint(model, model.config, path, command=entry["command"],
-                           metrics={**entry["metrics"], **metrics}, overwrite=True,
-                           environment=entry.get("trained_on", {}))
+    record_checkpoint_metrics(path, _jsonable(metrics), manifest=mpath, merge=True)
+    return read_manifest(mpath)[entry_name(path, mpath)]
 
 
 def recorded_metrics(path: str | os.PathLike) -> dict:
-    """The metrics of a checkpoint's manifest entry (what `save_checkpoint` / `record_metrics` stored)."""
-    path = Path(path)
-    mpath = manifest_path(path, None)
-    name = entry_name(path, mpath)
-    table = read_manifest(mpath)
-    if name not in table:
-        raise KeyError(f"{mpath} has no entry {name!r}; build it with the lesson's reproduction command")
-    return table[name]["metrics"]
+    """What `save_checkpoint` / `record_metrics` stored about a checkpoint: its entry of its results file ({} when
+    none); KeyError when the manifest beside it does not list it."""
+    return checkpoint_metrics(path)
 
 
 def _config_from_dict(config_cls, values: dict):

@@ -555,7 +555,7 @@ def test_render_keyframes_draws_every_pose_in_place_and_the_floor_curve(walk):
         render.render_keyframes(walk, [])
 
 
-def test_control_is_a_reproduce_entry_recorded_in_the_manifest(tmp_path):
+def test_control_is_a_reproduce_entry_recorded_in_its_results_file(tmp_path):
     import json
 
     from course_lib.experiments import control as X
@@ -566,8 +566,9 @@ def test_control_is_a_reproduce_entry_recorded_in_the_manifest(tmp_path):
     with pytest.raises(FileNotFoundError, match="reproduce control"):
         X.recorded_results(tmp_path)
     X.record_results({"offline": {"line/walk/ours": {"end_distance_m": 0.1}}}, tmp_path)
-    table = json.loads((tmp_path / "MANIFEST.json").read_text())
-    assert set(table) == {"control", "gmm_rnn"} and table["control"]["command"] == X.COMMAND
+    assert set(json.loads((tmp_path / "MANIFEST.json").read_text())) == {"gmm_rnn"}  # no entry without a file
+    stored = json.loads((tmp_path / "results" / "control.json").read_text())
+    assert stored["command"] == X.COMMAND and stored["uses"] == ["gmm_rnn.pt"]
     assert X.recorded_results(tmp_path)["offline"]["line/walk/ours"]["end_distance_m"] == 0.1
 
 

@@ -162,7 +162,9 @@ def test_checkpoint_round_trip_identical_outputs(tmp_path):
     assert manifest["tiny"]["sha256"] == sha256_file(path) == entry["sha256"]
     assert manifest["tiny"]["file"] == "tiny.pt" and manifest["tiny"]["bytes"] == path.stat().st_size
     assert manifest["tiny"]["config"] == {"d_in": 3, "hidden": [16]}
-    assert manifest["tiny"]["metrics"] == {"mse": 0.25} and manifest["tiny"]["command"] == "python -m tiny"
+    assert manifest["tiny"]["command"] == "python -m tiny" and "metrics" not in manifest["tiny"]  # provenance only
+    results = json.loads((tmp_path / "results" / "tiny.json").read_text())  # the metrics: results/<name>.json
+    assert results == {"command": "python -m tiny", "checkpoints": {"tiny": {"mse": 0.25}}}
     loaded = load_checkpoint(path, TinyRegressor, TinyConfig)
     assert loaded.config == config and not loaded.training
     x = torch.randn(5, 3)
@@ -305,11 +307,35 @@ def test_record_metrics_keeps_weights_config_and_command(tmp_path):
     model, config = TinyRegressor(TinyConfig()), TinyConfig()
     path = tmp_path / "tiny.pt"
     before = save_checkpoint(model, config, path, command="python -m tiny", metrics={"mse": 0.25})
+    manifest = (tmp_path / "MANIFEST.json").read_bytes()
     after = record_metrics(path, TinyRegressor, TinyConfig, tables={"FID": 12.5})
     assert recorded_metrics(path) == {"mse": 0.25, "tables": {"FID": 12.5}}
-    assert after["command"] == before["command"] and after["config"] == before["config"]
+    assert after == before and (tmp_path / "MANIFEST.json").read_bytes() == manifest  # the manifest untouched
+    assert sha256_file(path) == before["sha256"]  # the file too
     again = load_checkpoint(path, TinyRegressor, TinyConfig)
     for a, b in zip(model.state_dict().values(), again.state_dict().values(), strict=True):
         torch.testing.assert_close(a, b, rtol=0, atol=0)
     with pytest.raises(KeyError, match="no entry"):
         recorded_metrics(tmp_path / "other.pt")
+
+
+def test_metrics_go_to_the_lesson_results_file_of_the_command(tmp_path, repo_root):
+    """A lesson's checkpoints share results/<NAME>.json (python -m course_lib.reproduce NAME), under their
+    manifest names; a re-save without metrics drops the stale ones; other checkpoint folders keep their own
+    results/ (the repository's results/ is only for its own checkpoints/)."""
+    from course_lib.results import read_results, results_file
+    from course_lib.training import recorded_metrics
+
+    model, config = TinyRegressor(TinyConfig()), TinyConfig()
+    command = "python -m course_lib.reproduce lesson"
+    save_checkpoint(model, config, tmp_path / "a.pt", command=command, metrics={"steps": 3})
+    save_checkpoint(model, config, tmp_path / "b.pt", command=command, metrics={"curve": [1.0, 0.5]})
+    assert results_file("lesson", tmp_path) == tmp_path / "results" / "lesson.json"
+    assert read_results("lesson", tmp_path) == {"command": command,
+                                                "checkpoints": {"a": {"steps": 3}, "b": {"curve": [1.0, 0.5]}}}
+    assert recorded_metrics(tmp_path / "b.pt") == {"curve": [1.0, 0.5]}
+    save_checkpoint(model, config, tmp_path / "a.pt", command=command, overwrite=True)
+    assert recorded_metrics(tmp_path / "a.pt") == {} and set(read_results("lesson", tmp_path)["checkpoints"]) == {"b"}
+    assert results_file("gmm_rnn") == results_file("gmm_rnn", repo_root / "checkpoints") == \
+        repo_root / "results" / "gmm_rnn.json"  # the repository's own checkpoints/: its results/
+

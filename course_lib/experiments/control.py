@@ -1,7 +1,7 @@
 """Lesson 04's experiment: MAP motion control with the shipped GMM-RNN as the prior (Wang, Chai et al. 2021,
 sec. 5.2-5.4), measured on held-out start frames and clips, against the baselines a reader would try first.
 
-    python -m course_lib.reproduce control              # every measurement -> the "control" entry of the manifest
+    python -m course_lib.reproduce control              # every measurement -> results/control.json
     python -m course_lib.reproduce control --eval-only  # the same (nothing is trained: it uses gmm_rnn.pt)
     python -m course_lib.reproduce control --only denoise   # re-measure some PARTS, keep the others recorded
 
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from course_lib.results import rounded
+from course_lib.results import recorded, rounded, update_results
 
 __all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "offline_case", "measure_design",
            "online_run", "held_share", "parallel_map", "denoise_clips", "denoise_eval", "initial_state_eval",
@@ -488,24 +488,17 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
 
 def train_control(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS) -> dict:
     """Nothing to train (the prior is lesson 03's gmm_rnn.pt): the evaluation (or its parts in `only`), recorded
-    in the manifest."""
+    in results/control.json."""
     return eval_control(seed, checkpoints, only=only)
 
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> None:
-    """Store the results as the manifest's "control" entry (no checkpoint file of its own)."""
-    from course_lib.manifest import update_manifest as _update_manifest
-
-    _update_manifest(checkpoints / "MANIFEST.json", "control",
-                     {"command": COMMAND, "uses": ["gmm_rnn.pt"], "results": results})
+    """Store the results in results/control.json (``["results"]``; lesson 04 has no checkpoint of its own: it
+    uses lesson 03's gmm_rnn.pt, whose sha256 the results name)."""
+    update_results("control", lambda data: data.update(uses=["gmm_rnn.pt"], results=results), checkpoints,
+                   command=COMMAND)
 
 
 def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
-    """The results stored by `record_results`."""
-    import json
-
-    entry = json.loads((checkpoints / "MANIFEST.json").read_text()).get("control")
-    if entry is None:
-        raise FileNotFoundError("no 'control' entry in checkpoints/MANIFEST.json: run python -m course_lib.reproduce "
-                                "control")
-    return entry["results"]
+    """The results stored by `record_results`; FileNotFoundError (naming the command) when none are recorded."""
+    return recorded("control", "results", checkpoints=checkpoints)

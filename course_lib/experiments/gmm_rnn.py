@@ -154,6 +154,20 @@ def column_groups() -> dict[str, list[int]]:
     return cols | {"root": list(range(6))}
 
 
+def rnn_config(spec: Lesson03Spec, rnn_stats):
+    """The GmmRnnConfig `train_rnn` trains with: spec's sizes and choices; the columns the data never vary (fixed,
+    left out of the mixture) from ``rnn_stats``, the (mean, std) of the RNN's features on its training windows
+    (`rnn_features`; a trained model keeps them as ``feature_mean`` / ``feature_std``)."""
+    from course_lib.models.gmm_rnn import GmmRnnConfig
+
+    fixed = tuple(int(c) for c in np.flatnonzero(FixedDofs.from_stats(*rnn_stats).mask)) if spec.rnn_fixed_dims else ()
+    return GmmRnnConfig.cpu(fc_width=spec.rnn_width, lstm_width=spec.rnn_width, out_width=spec.rnn_width,
+                            fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims,
+                            features=spec.rnn_features, anchor_tau=spec.rnn_anchor_tau,
+                            anchor_rule=spec.rnn_anchor_rule, fixed_dims=fixed,
+                            bernoulli_contacts=spec.rnn_bernoulli_contacts)
+
+
 def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int | None = None,
               finetune_steps: int | None = None, progress: bool = True, config=None, device: str = "cpu"):
     """The GMM-RNN of sec. 4.1 on ds's windows -> (model, History, fine-tuning History).
@@ -162,17 +176,11 @@ def train_rnn(ds: WindowDataset, spec: Lesson03Spec, seed: int = 0, steps: int |
     spec.finetune with ``self_feed`` inputs (true frames alternating with the model's own predictions) at
     spec.finetune_lr; finetune_steps overrides every stage's step count."""
     from course_lib.history import History
-    from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
+    from course_lib.models.gmm_rnn import GmmRnn
     from course_lib.training import fit
 
     features, rnn_stats = rnn_features(ds, spec.rnn_features, spec.rnn_anchor_tau, spec.rnn_anchor_rule)
-    fixed = tuple(int(c) for c in np.flatnonzero(FixedDofs.from_stats(*rnn_stats).mask)) if spec.rnn_fixed_dims else ()
-    config = config or GmmRnnConfig.cpu(fc_width=spec.rnn_width, lstm_width=spec.rnn_width, out_width=spec.rnn_width,
-                                        fps=spec.fps, noise_std=spec.rnn_noise, absolute_dims=spec.rnn_absolute_dims,
-                                        features=spec.rnn_features, anchor_tau=spec.rnn_anchor_tau,
-                                        anchor_rule=spec.rnn_anchor_rule,
-                                        fixed_dims=fixed,
-                                        bernoulli_contacts=spec.rnn_bernoulli_contacts)
+    config = config or rnn_config(spec, rnn_stats)
     torch.manual_seed(seed)
     model = GmmRnn(config, stats=rnn_stats).to(device)
     cpu_sample = window_sampler(features, config.window, config.batch_size, torch.Generator().manual_seed(seed))
@@ -331,23 +339,34 @@ def rnn_pool(model, ds: WindowDataset, spec: Lesson03Spec, seed: int = 0) -> Rnn
     return RnnPool(feats, off)
 
 
+def refiner_config(spec: Lesson03Spec, contacts: bool):
+    """The RefinerConfig `train_gan` trains GAN1 (contacts=False) or GAN2 with: the CPU sizes, spec's
+    self-regularisation and what D sees, and the balance band its schedule applies (spec.d_loss_low /
+    d_loss_high; the schedule also takes spec.schedule_smooth and spec.max_r_updates, which the config has no
+    field for)."""
+    from course_lib.models.refiner import RefinerConfig
+
+    return RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts and spec.discriminator_contacts,
+                             fps=spec.fps, pose_lam=spec.refiner_pose_lam, leg_pose_lam=spec.refiner_leg_pose_lam,
+                             discriminator_joints=spec.discriminator_joints, d_loss_low=spec.d_loss_low,
+                             d_loss_high=spec.d_loss_high)
+
+
 def train_gan(pool: RnnPool, ds: WindowDataset, spec: Lesson03Spec, contacts: bool, seed: int,
               iterations: int | None = None, progress: bool = True, schedule=None):
     """R and D of sec. 4.2 on random spec.refiner_window-frame crops of the RNN pool vs mocap windows, every
     motion's kinematics on its own subject's skeleton -> (refiner, discriminator, History).  contacts=False is
     GAN1, True GAN2 (sec. 4.3; its D also sees the contact bits).  schedule: an AdversarialSchedule (default: the
     paper's rule with spec's thresholds and smoothing, r capped at spec.max_r_updates)."""
-    from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, RefinerConfig, train_refiner
+    from course_lib.models.refiner import AdversarialSchedule, Discriminator, Refiner, train_refiner
 
-    config = RefinerConfig.cpu(contacts=contacts, discriminator_contacts=contacts and spec.discriminator_contacts,
-                               fps=spec.fps, pose_lam=spec.refiner_pose_lam, leg_pose_lam=spec.refiner_leg_pose_lam,
-                               discriminator_joints=spec.discriminator_joints)
+    config = refiner_config(spec, contacts)
     torch.manual_seed(seed)
     refiner, disc = Refiner(config, stats=ds.stats), Discriminator(config)
     g = torch.Generator().manual_seed(seed)
     rnn = window_sampler(list(pool.features.numpy()), spec.refiner_window, config.d_batch, g, pool.offsets)
     real = window_sampler(ds.features, spec.refiner_window, config.d_batch, g, clip_offsets(ds.clips))
-    schedule = schedule or AdversarialSchedule(config.warmup, config.r_per_d, spec.d_loss_low, spec.d_loss_high,
+    schedule = schedule or AdversarialSchedule(config.warmup, config.r_per_d, config.d_loss_low, config.d_loss_high,
                                                max_r_updates=spec.max_r_updates, smooth=spec.schedule_smooth)
     hist = train_refiner(refiner, disc, rnn, real, iterations=spec.refiner_iterations if iterations is None
                          else iterations, config=config, schedule=schedule, generator=g, progress=progress,
@@ -534,15 +553,14 @@ def evaluate(model, refiners: dict, stats, spec: Lesson03Spec, test: list[Motion
 
 def evaluate_seeds(spec: Lesson03Spec, test: list[Motion], seed: int = 0, checkpoints: Path = CHECKPOINTS) -> dict:
     """evaluate() for every refiner seed of spec.seeds from the checkpoints -> {"per_seed": {seed: ...}}; each
-    seed's entry also carries its GAN training summary from the manifest."""
-    import json
+    seed's entry also carries its GAN training summary (the refiners' recorded metrics, results/gmm_rnn.json)."""
+    from course_lib.training import recorded_metrics
 
-    manifest = json.loads((checkpoints / "MANIFEST.json").read_text())
     out = {"per_seed": {}, "test_clips": len(test)}
     for s in spec.seeds:
         model, refiners, stats = load_models(checkpoints, s)
         res = evaluate(model, refiners, stats, spec, test, seed)
-        res["gan"] = {name: {k: v for k, v in manifest[Path(refiner_file(name, s)).stem]["metrics"].items()
+        res["gan"] = {name: {k: v for k, v in recorded_metrics(checkpoints / refiner_file(name, s)).items()
                              if k in _GAN_KEYS} for name in refiners}
         out["per_seed"][str(s)] = res
         print(f"seed {s}: " + ", ".join(f"{k} skate {v['foot_skate']:.3f}" for k, v in res["quality"].items()),
@@ -575,7 +593,7 @@ def _gan_summary(hist) -> dict:
 def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool = True, only=None,
                   checkpoints: Path = CHECKPOINTS) -> dict:
     """Train the RNN, then GAN1 and GAN2 for every seed of spec.seeds, save every checkpoint (+ stats),
-    evaluate every seed and store the results in the RNN's manifest entry -> results dict.
+    evaluate every seed and store the results with the RNN's metrics (results/gmm_rnn.json) -> results dict.
 
     only: None (everything), ["gans"] (keep checkpoints/gmm_rnn.pt, retrain the refiners: the same files
     as a full run, since the RNN and its pool are deterministic) or ["eval"] (re-evaluate and re-record)."""
@@ -624,18 +642,18 @@ def load_models_rnn(checkpoints: Path = CHECKPOINTS):
 
 
 def _resave_rnn(checkpoints: Path, change_model=None, **metrics) -> dict:
-    """Load checkpoints/gmm_rnn.pt, apply change_model(model), save it again under its recorded command with its
-    metrics updated by ``metrics``."""
-    import json
+    """Load checkpoints/gmm_rnn.pt, apply change_model(model), save it again under its recorded command and
+    training environment with its recorded metrics updated by ``metrics``."""
+    from course_lib.manifest import read_manifest
+    from course_lib.training import recorded_metrics, save_checkpoint
 
-    from course_lib.training import save_checkpoint
-
-    entry = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]
+    path = checkpoints / "gmm_rnn.pt"
+    entry = read_manifest(checkpoints / "MANIFEST.json")["gmm_rnn"]
     model = load_models_rnn(checkpoints)
     if change_model is not None:
         change_model(model)
-    return save_checkpoint(model, model.config, checkpoints / "gmm_rnn.pt", command=entry["command"],
-                           metrics={**entry["metrics"], **metrics}, overwrite=True,
+    return save_checkpoint(model, model.config, path, command=entry["command"],
+                           metrics={**recorded_metrics(path), **metrics}, overwrite=True,
                            environment=entry.get("trained_on", {}))
 
 
@@ -654,25 +672,32 @@ def store_limits(ds: WindowDataset, checkpoints: Path = CHECKPOINTS, atol: float
 
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
-    """Store the evaluation in the GMM-RNN's manifest entry (``metrics["results"]``) so the notebook can show
-    the 120-clip, 3-seed numbers in CI mode without re-running it."""
-    return _resave_rnn(checkpoints, results=results)
+    """Store the evaluation with the GMM-RNN's metrics in results/gmm_rnn.json (``["checkpoints"]["gmm_rnn"]
+    ["results"]``) so the notebook can show the 120-clip, 3-seed numbers in CI mode without re-running it.  The
+    checkpoint is not rewritten.  Returns its manifest entry."""
+    from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
+    from course_lib.training import record_metrics
+
+    return record_metrics(checkpoints / "gmm_rnn.pt", GmmRnn, GmmRnnConfig, results=results)
 
 
 def _every_20(hist) -> list:
-    """A training curve thinned to one mean per 20 steps (for the manifest)."""
+    """A training curve thinned to one mean per 20 steps (for the recorded metrics)."""
     loss = hist.step.get("loss", [])
     return rounded([float(np.mean(loss[i:i + 20])) for i in range(0, len(loss), 20)], 4)
 
 
 def _history_dict(hist) -> dict:
-    """The GAN training curves kept in the manifest for the notebook's dynamics plot."""
+    """The GAN training curves kept in the recorded metrics for the notebook's dynamics plot."""
     keys = ("loss", "adversarial", "root", "d_loss", "d_acc_real", "d_acc_fake", "r_updates")
     return {k: [float(v) for v in hist.step[k]] for k in keys}
 
 
 def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
-    """The results stored by `train_gmm_rnn` in the GMM-RNN's manifest entry."""
-    import json
+    """The results stored by `train_gmm_rnn` (`record_results`) with the GMM-RNN's metrics."""
+    from course_lib.training import recorded_metrics
 
-    return json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["metrics"]["results"]
+    results = recorded_metrics(checkpoints / "gmm_rnn.pt").get("results")
+    if results is None:
+        raise KeyError(f"no recorded evaluation for {checkpoints / 'gmm_rnn.pt'}: run {COMMAND}")
+    return results

@@ -1,6 +1,6 @@
 """Lesson 05 experiment: the hierarchical VRNN of Ghorbani et al. 2020, its ablations and baselines.
 
-    python -m course_lib.reproduce hvrnn              # data, DAE, train 6 models, Table 2 -> manifest
+    python -m course_lib.reproduce hvrnn              # data, DAE, train 6 models, Table 2 -> results/hvrnn.json
     python -m course_lib.reproduce hvrnn --eval-only  # Table 2 etc. from checkpoints/hvrnn_*.pt
 
 Data: the actions dataset (walk, jog, jump, lift x styles A/B, one clip per subject, action and
@@ -484,7 +484,8 @@ def eval_hvrnn(seed: int = 0, progress: bool = True, checkpoints: Path = CHECKPO
 
 def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Path = CHECKPOINTS,
                 mode: str | None = "full", scale: float = 1.0) -> dict:
-    """DAE, loss classifiers, every generator (or those in `only`); checkpoints + manifest -> eval results."""
+    """DAE, loss classifiers, every generator (or those in `only`); checkpoints + manifest, metrics and
+    evaluation in results/hvrnn.json -> eval results."""
     from course_lib.training import save_checkpoint
 
     t0 = time.perf_counter()
@@ -525,7 +526,9 @@ def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Pa
 
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
-    """Store the evaluation in the Proposed checkpoint's manifest entry (``metrics["tables"]``)."""
+    """Store the evaluation with the Proposed checkpoint's metrics in results/hvrnn.json
+    (``["checkpoints"]["hvrnn_proposed"]["tables"]``); the checkpoint is not rewritten.  Returns its manifest
+    entry."""
     from course_lib.training import record_metrics
 
     spec = model_specs()["hvrnn_proposed"]
@@ -536,4 +539,7 @@ def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
     """The evaluation stored by `record_results` (the shipped >= 100-samples-per-attribute numbers)."""
     from course_lib.training import recorded_metrics
 
-    return recorded_metrics(checkpoints / "hvrnn_proposed.pt")["tables"]
+    tables = recorded_metrics(checkpoints / "hvrnn_proposed.pt").get("tables")
+    if tables is None:
+        raise KeyError(f"no recorded evaluation for {checkpoints / 'hvrnn_proposed.pt'}: run {COMMAND}")
+    return tables

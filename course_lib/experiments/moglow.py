@@ -1,6 +1,6 @@
 """Lesson 06 experiment: MoGlow (Henter et al. 2019) on the course's locomotion data, its variants and baselines.
 
-    python -m course_lib.reproduce moglow              # data, train 4 models -> checkpoints, evaluation -> manifest
+    python -m course_lib.reproduce moglow              # data, train 4 models, evaluation -> results/moglow.json
     python -m course_lib.reproduce moglow --eval-only  # the evaluation from checkpoints/moglow*.pt
 
 Data as sec. 5.1: the locomotion dataset (1800 clips of 4 s, 45 subjects) at 20 fps in
@@ -523,7 +523,7 @@ def eval_moglow(seed: int = 0, checkpoints: Path = CHECKPOINTS, mode: str | None
 
 def train_moglow(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS, mode: str | None = "full",
                  steps: int = STEPS, progress: bool = False) -> dict:
-    """Train every variant (or those in `only`), save checkpoints + stats, evaluate, record in the manifest."""
+    """Train every variant (or those in `only`), save checkpoints + stats, evaluate, record in results/moglow.json."""
     from course_lib.training import save_checkpoint
 
     t0 = time.perf_counter()
@@ -551,7 +551,8 @@ def train_moglow(seed: int = 0, only=None, checkpoints: Path = CHECKPOINTS, mode
 
 
 def record_results(results: dict, checkpoints: Path = CHECKPOINTS) -> dict:
-    """Store the evaluation in the main model's manifest entry (``metrics["results"]``)."""
+    """Store the evaluation with the main model's metrics in results/moglow.json
+    (``["checkpoints"]["moglow"]["results"]``); the checkpoint is not rewritten.  Returns its manifest entry."""
     from course_lib.models.moglow import MoGlow, MoGlowConfig
     from course_lib.training import record_metrics
 
@@ -562,7 +563,10 @@ def recorded_results(checkpoints: Path = CHECKPOINTS) -> dict:
     """The evaluation stored by `record_results`."""
     from course_lib.training import recorded_metrics
 
-    return recorded_metrics(checkpoints / "moglow.pt")["results"]
+    results = recorded_metrics(checkpoints / "moglow.pt").get("results")
+    if results is None:
+        raise KeyError(f"no recorded evaluation for {checkpoints / 'moglow.pt'}: run {COMMAND}")
+    return results
 
 
 def training_curve(name: str, checkpoints: Path = CHECKPOINTS) -> list[float]:

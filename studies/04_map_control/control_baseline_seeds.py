@@ -5,7 +5,7 @@ The offline rows are one seed's, and they move with numerics alone: after the on
 matrices, the same positions to ~1e-16 m) the recorded run's "ours closest to the curve" went from 8 to 6 of 10 cases
 with the cases that failed changed.  This tool runs every method on every case (5 curves x walking and running) for
 seeds 1 and 2 (the start frame, the samples and the noise all change with the seed), with the recorded run's settings
-and measure (experiments.control's offline rows), takes seed 0 from the recorded run (checkpoints/MANIFEST.json,
+and measure (experiments.control's offline rows), takes seed 0 from the recorded run (results/control.json,
 ``control``), and prints each method's mean root-to-curve distance, end distance and foot skate per seed, their mean
 and sd, and per case which baselines have a smaller mean distance than ours over the 3 seeds.
 
@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--out", required=True)
     parser.add_argument("--workers", type=int, default=C.WORKERS)
     args = parser.parse_args()
-    recorded = json.loads((CHECKPOINTS / "MANIFEST.json").read_text())["control"]["results"]["offline"]
+    recorded = C.recorded_results(CHECKPOINTS)["offline"]
     rows = {f"{key}/seed 0": {k: v for k, v in row.items() if k != "root_xz"} for key, row in recorded.items()}
     tasks = [(name, gait, method, seed, 1.0) for seed in SEEDS[1:] for name in C.CURVES for gait in GAITS
              for method in C.METHODS]
@@ -61,7 +61,7 @@ def main() -> None:
               f"{np.round(s['foot_skate_m_s'], 2)}")
     print("baselines closer to the curve than ours on the mean of the seeds:", beaten)
     out = {"command": "python studies/04_map_control/control_baseline_seeds.py --out studies/04_map_control/control_baseline_seeds_results.json",
-           "seeds": list(SEEDS), "seed_0": "the recorded run's rows (checkpoints/MANIFEST.json)", "rows": rows,
+           "seeds": list(SEEDS), "seed_0": "the recorded run's rows (results/control.json)", "rows": rows,
            "summary": summary, "baselines_closer_on_the_mean": beaten}
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1)

@@ -31,7 +31,7 @@ def main() -> None:
     parser.add_argument("--out", required=True)
     parser.add_argument("--workers", type=int, default=C.WORKERS)
     args = parser.parse_args()
-    recorded = json.loads((CHECKPOINTS / "MANIFEST.json").read_text())["control"]["results"]["equal_time"]
+    recorded = C.recorded_results(CHECKPOINTS)["equal_time"]
     seeds_rows = json.loads(SEEDS_FILE.read_text())["rows"]
     per_seed = {0: recorded}
     for seed in (1, 2):
@@ -46,7 +46,7 @@ def main() -> None:
         summary[case]["closest"] = min(METHODS, key=lambda m: summary[case][m]["mean_root_to_curve_m"])
         print(case, summary[case], flush=True)
     out = {"command": f"OMP_NUM_THREADS=1 python studies/04_map_control/control_equal_time_seeds.py --out {args.out}",
-           "seed_0": "the recorded run's equal_time rows (checkpoints/MANIFEST.json)",
+           "seed_0": "the recorded run's equal_time rows (results/control.json)",
            "per_seed": {str(s): v for s, v in per_seed.items()}, "summary": summary}
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 4), indent=1) + "\n")

@@ -1,7 +1,7 @@
 """Lesson 04 side experiment (issue 16): why does a rerun of the recorded online run diverge from the recording?
 
 studies/04_map_control/control_online_seeds.py found a fresh-process rerun of the scripted online run (seed 0) agreeing with the
-manifest's recording to 1e-4 m/s for 11 s walking and 8.7 s running, then drifting apart.  The recording was made
+recording (results/control.json) to 1e-4 m/s for 11 s walking and 8.7 s running, then drifting apart.  The recording was made
 on a host whose torch kernels ran at cpu capability AVX512 (the manifest's ``trained_on`` of the GMM-RNN); this
 machine runs AVX2.  This tool runs the same scripted run in fresh processes: twice at this host's capability, once
 with torch's portable kernels (``ATEN_CPU_CAPABILITY=default``), and compares them batch by batch.

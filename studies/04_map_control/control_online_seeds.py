@@ -2,7 +2,7 @@
 
 The recorded run's held share (batches within 10 % of the commanded speed from 1 s after a change) moved between
 recordings of the same controller code (0.92 / 0.39 walking / running, then 0.83 / 0.28).  This tool reruns the
-recorded scripted run (seed 0) in a fresh process, compares it batch by batch with the manifest's recording (the
+recorded scripted run (seed 0) in a fresh process, compares it batch by batch with the recording in results/control.json (the
 first batch whose speed differs by more than 1e-4 m/s, and the heading just before it), then runs seeds 1 and 2:
 settling times, turn times and held share per seed.
 
