@@ -10,7 +10,7 @@
 #   make student     student copies (exercises without solutions, nbgrader) in student/, then JupyterLab there
 #   make student-copies  only write the student copies into student/ (keeps existing ones; FORCE=1 rewrites)
 #   make reproduce   retrain every checkpoint with the command in checkpoints/MANIFEST.json (COURSE_MODE=full)
-#   make bench       timings table (python -m course_lib.bench)
+#   make bench       timings table (python -m course_lib.timings)
 #   make clean       remove site/, build/ and caches, never student/ (make distclean also removes .venv and data/)
 
 SHELL := /bin/bash
@@ -116,7 +116,7 @@ student: student-copies data
 	$(VENV)/bin/jupyter lab student/
 
 bench: setup
-	$(PY) -m course_lib.bench
+	$(PY) -m course_lib.timings
 
 # `clean` never touches student/ (your answers); `delete-student-answers` does, and says so.
 clean:

@@ -50,10 +50,10 @@ import torch
 
 from course_lib.motion import Motion
 from course_lib.outputs import check_outputs
+from course_lib.paths import CHECKPOINTS
 from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[1]
-CHECKPOINTS = ROOT / "checkpoints"
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "benchmark_results.json"  # the repository's results/
 FPS = 30.0  # the protocol's frame rate (the classifiers' and lesson 03's)
 

@@ -23,9 +23,9 @@ import torch
 from course_lib.experiments import control, gmm_rnn, hvrnn, moglow, vae_lstm
 from course_lib.manifest import read_manifest
 from course_lib.outputs import check_outputs
+from course_lib.paths import CHECKPOINTS
 
 ROOT = Path(__file__).resolve().parent.parent
-CHECKPOINTS = ROOT / "checkpoints"
 
 
 EXPERIMENTS = {name: (getattr(lesson, f"train_{name}"), getattr(lesson, f"eval_{name}"))

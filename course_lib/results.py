@@ -36,6 +36,7 @@ import numpy as np
 
 from course_lib.checksums import sha256_file
 from course_lib.manifest import entry_name, manifest_path, read_manifest
+from course_lib.paths import CHECKPOINTS, REPO_ROOT
 
 __all__ = ["checkpoint_metrics", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
            "results_file", "results_folder", "results_name", "rounded", "studies_folder", "study_result",
@@ -96,7 +97,7 @@ def rounded(d, digits: int = 6):
 
 # ----------------------------------------------------------------------------- the lessons' results files
 
-_ROOT = Path(__file__).resolve().parents[1]
+_ROOT = REPO_ROOT
 REPRODUCE = "python -m course_lib.reproduce"
 
 
@@ -109,7 +110,7 @@ def results_folder(checkpoints: str | os.PathLike) -> Path:
     return checkpoints / "results"
 
 
-def results_file(name: str, checkpoints: str | os.PathLike = _ROOT / "checkpoints") -> Path:
+def results_file(name: str, checkpoints: str | os.PathLike = CHECKPOINTS) -> Path:
     """The results file of reproduction ``name`` (or of a checkpoint without one) for ``checkpoints``."""
     if not name or "/" in name or name.startswith("."):
         raise ValueError(f"results_file: {name!r} is not a results name (a lesson command's name, e.g. 'gmm_rnn')")
@@ -136,7 +137,7 @@ def _command_of(name: str) -> str:
     return f"{REPRODUCE} {name}"
 
 
-def read_results(name: str, checkpoints: str | os.PathLike = _ROOT / "checkpoints") -> dict:
+def read_results(name: str, checkpoints: str | os.PathLike = CHECKPOINTS) -> dict:
     """The results file of ``name`` as a dict; FileNotFoundError (naming the command that writes it) when absent,
     ValueError when it is not a JSON object."""
     file = results_file(name, checkpoints)
@@ -153,7 +154,7 @@ def read_results(name: str, checkpoints: str | os.PathLike = _ROOT / "checkpoint
     return data
 
 
-def recorded(name: str, *keys: str, checkpoints: str | os.PathLike = _ROOT / "checkpoints"):
+def recorded(name: str, *keys: str, checkpoints: str | os.PathLike = CHECKPOINTS):
     """``read_results(name)[keys[0]][keys[1]]...``; a missing key is a KeyError that names the file and the
     command that records it."""
     value = read_results(name, checkpoints)
@@ -178,7 +179,7 @@ def _dumps(x, level: int = 0) -> str:
 
 
 def update_results(name: str, change: Callable[[dict], None],
-                   checkpoints: str | os.PathLike = _ROOT / "checkpoints", *, command: str | None = None) -> dict:
+                   checkpoints: str | os.PathLike = CHECKPOINTS, *, command: str | None = None) -> dict:
     """Read-modify-write the results file of ``name`` under an exclusive lock: ``change(data)`` edits the dict in
     place ({"command", "checkpoints": {}} for a new file; ``command`` defaults to the lesson's reproduction command).
     Returns what was written."""

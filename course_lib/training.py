@@ -33,6 +33,7 @@ from . import __version__
 from .checksums import sha256_file, write_sidecar
 from .history import History
 from .manifest import entry_name, manifest_path, read_manifest, update_manifest, verify_file
+from .paths import missing_checkpoints_hint
 from .results import checkpoint_metrics, record_checkpoint_metrics
 
 __all__ = [
@@ -313,7 +314,7 @@ def load_checkpoint(path: str | os.PathLike, model_cls, config_cls, *, manifest:
     """
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"checkpoint {path} not found")
+        raise FileNotFoundError(f"checkpoint {missing_checkpoints_hint(path)}")
     if verify:
         verify_file(path, manifest)
     payload = torch.load(path, map_location="cpu", weights_only=True)

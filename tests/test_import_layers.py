@@ -23,7 +23,7 @@ PACKAGE = Path(course_lib.__file__).resolve().parent
 # Bottom to top.  Names are relative to course_lib ("course_lib" itself is the package's __init__).
 LAYERS = (
     # 0  conventions, quaternions, bones; file bookkeeping, run modes, JSON results, training logs (no Motion)
-    ("course_lib", "rotations", "skeleton", "checksums", "modes", "outputs", "manifest", "results", "history"),
+    ("course_lib", "paths", "rotations", "skeleton", "checksums", "modes", "outputs", "manifest", "results", "history"),
     # 1  the Motion container
     ("motion",),
     # 2  generators; file I/O; pictures and plots; features <-> Motion
@@ -34,7 +34,8 @@ LAYERS = (
     ("datasets", "corpus", "synthetic.report"),
     # 4  one file per paper + baselines; the JAX ports
     ("models", "models.baselines", "models.contact_cleanup", "models.gmm_rnn", "models.hvrnn", "models.lstm_step",
-     "models.moglow", "models.refiner", "models.vae", "models.vae_lstm", "jax_moglow", "jax_reference", "jax_vae"),
+     "models.moglow", "models.refiner", "models.vae", "models.vae_lstm", "models.jax_moglow", "models.jax_vae",
+     "jax_reference"),
     # 5  the fit loop and checkpoints; metrics, classifiers, FID/IS/C2ST, tables
     ("training", "evaluation", "evaluation.classifiers", "evaluation.contacts", "evaluation.distribution",
      "evaluation.freezing", "evaluation.metrics", "evaluation.perturb", "evaluation.tables"),
@@ -46,7 +47,7 @@ LAYERS = (
     ("experiments", "experiments.control", "experiments.gmm_rnn", "experiments.gmm_rnn_jitter", "experiments.hvrnn",
      "experiments.moglow", "experiments.vae_basics", "experiments.vae_lstm"),
     # 8  one protocol for all models; timings
-    ("benchmark", "bench"),
+    ("benchmark", "timings"),
     # 9  the reproduction CLI; the exercises' answers
     ("reproduce", "solutions", "solutions.benchmark", "solutions.control", "solutions.data_lesson",
      "solutions.gmm_rnn", "solutions.hvrnn", "solutions.moglow", "solutions.vae_basics"),

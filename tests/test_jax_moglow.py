@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from course_lib import jax_moglow as jm
+from course_lib.models import jax_moglow as jm
 from course_lib.models.moglow import FlowStep
 
 ATOL = 1e-5

@@ -1,4 +1,4 @@
-"""Parity of the JAX pose VAE (course_lib.jax_vae) with the torch one, and the written-out Adam."""
+"""Parity of the JAX pose VAE (course_lib.models.jax_vae) with the torch one, and the written-out Adam."""
 
 import jax
 import jax.numpy as jnp
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from course_lib import jax_vae
+from course_lib.models import jax_vae
 from course_lib.models.vae import PoseVae, VaeConfig
 
 

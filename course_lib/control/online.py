@@ -12,7 +12,7 @@ sampler noise and d (rollout.py; gradients by BPTT); the lowest-energy batch eva
 Latency: a command given to ``step`` shapes the ``batch`` frames that call returns (10 frames = 0.33 s at
 30 fps); its speed is the batch's average, its direction is asked of the batch's last frame.
 
-Speed (`python -m course_lib.bench --only online`, one core, 10 frames a step): a median of 212 ms a step before,
+Speed (`python -m course_lib.timings --only online`, one core, 10 frames a step): a median of 212 ms a step before,
 136 ms after four changes measured with cProfile and line_profiler (a step is ~6 rollouts of 10 frames and 5 backward
 passes, each thousands of small torch operations): FK chains by rotation matrices (`skeleton.chain_positions`), the
 contact term reusing the toes that un-anchoring the RNN's features computes anyway (`rollout(with_toes=True)`),

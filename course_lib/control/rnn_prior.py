@@ -29,13 +29,13 @@ import torch
 from course_lib import representations
 from course_lib.datasets import STD_FLOOR, load_stats
 from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig, mixture_log_prob
+from course_lib.paths import CHECKPOINTS  # the shipped ones (lesson 03 trains gmm_rnn.pt)
 from course_lib.skeleton import Skeleton
 from course_lib.training import load_checkpoint
 
 __all__ = ["RnnPrior", "noise_energy", "expand_state", "SIGMA_NOISE"]
 
 SIGMA_NOISE = 0.05  # eq. (16): "set to 0.05 by experiment"
-CHECKPOINTS = Path(__file__).resolve().parents[2] / "checkpoints"  # the shipped ones (lesson 03 trains gmm_rnn.pt)
 
 
 def noise_energy(d: torch.Tensor, sigma_noise: float = SIGMA_NOISE) -> torch.Tensor:

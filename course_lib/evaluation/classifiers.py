@@ -51,6 +51,7 @@ from torch import nn
 
 from course_lib.datasets import FixedDofs
 from course_lib.motion import Motion
+from course_lib.paths import CHECKPOINTS
 from course_lib.representations import encode_quaternion_root
 
 __all__ = ["ClassifierConfig", "MotionClassifier", "accuracy", "checkpoint_path", "load_classifier",
@@ -59,7 +60,7 @@ __all__ = ["ClassifierConfig", "MotionClassifier", "accuracy", "checkpoint_path"
 ACTIONS = ("walk", "jog", "jump", "lift")
 STYLES = ("A", "B")
 STYLED_ACTIONS = ACTIONS  # the actions the style classifier is trained and tested on
-CHECKPOINT_DIR = Path(__file__).resolve().parents[2] / "checkpoints"
+CHECKPOINT_DIR = CHECKPOINTS  # course_lib.paths: the repository's checkpoints/, or $COURSE_CHECKPOINTS
 
 
 @dataclasses.dataclass

@@ -27,13 +27,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from course_lib.paths import CHECKPOINTS
 from course_lib.results import recorded, rounded, update_results
 
 __all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "offline_case", "measure_design",
            "online_run", "held_share", "parallel_map", "denoise_clips", "denoise_eval", "initial_state_eval",
            "eval_control", "train_control", "record_results", "recorded_results"]
 
-CHECKPOINTS = Path(__file__).resolve().parents[2] / "checkpoints"
 COMMAND = "python -m course_lib.reproduce control"
 PACE = {"walk": 1.2, "run": 2.5}  # m/s each curve is asked at (held-out walks: median 1.07; runs: 2.86)
 CURVES = ("line", "circle_r2", "s_curve", "u_turn", "polyline")

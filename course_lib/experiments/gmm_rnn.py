@@ -35,11 +35,11 @@ from course_lib.evaluation import foot_skate as foot_skate_of  # noqa: F401  (le
 from course_lib.evaluation.contacts import contact_agreement, lower_toe
 from course_lib.evaluation.freezing import freeze_floor, joint_speed  # lesson 06 imports them from here
 from course_lib.motion import Motion
+from course_lib.paths import CHECKPOINTS
 from course_lib.representations import decode_state_features, encode_state_features, root_start
 from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
-CHECKPOINTS = ROOT / "checkpoints"
 ROWS = ("Mocap", "RNN", "GAN1", "GAN2", "GAN2 + contacts")
 COMMAND = "python -m course_lib.reproduce gmm_rnn"
 

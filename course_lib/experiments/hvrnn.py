@@ -37,10 +37,10 @@ import torch
 
 from course_lib.datasets import ACTIONS, STYLES
 from course_lib.motion import Motion
+from course_lib.paths import CHECKPOINTS
 from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
-CHECKPOINTS = ROOT / "checkpoints"
 FPS = 30.0
 SEQ_LEN = 90  # frames per training / generated sequence (3 s at 30 fps); the paper: 200
 COMMAND = "python -m course_lib.reproduce hvrnn"

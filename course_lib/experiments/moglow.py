@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from course_lib.paths import CHECKPOINTS
 from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
-CHECKPOINTS = ROOT / "checkpoints"
 COMMAND = "python -m course_lib.reproduce moglow"
 FPS = 20.0  # sec. 5.1: 120 -> 20 fps
 WINDOW = 80  # frames per training window (4 s)

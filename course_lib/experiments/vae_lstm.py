@@ -28,11 +28,11 @@ import torch
 from course_lib.corpus import DataSpec, generate_clips, load_clips  # noqa: F401  (lesson 02 reads them here)
 from course_lib.datasets import WindowDataset
 from course_lib.motion import Motion
+from course_lib.paths import CHECKPOINTS
 from course_lib.representations import decode_positions, root_start
 from course_lib.results import rounded
 
 ROOT = Path(__file__).resolve().parents[2]
-CHECKPOINTS = ROOT / "checkpoints"
 COMMAND = "python -m course_lib.reproduce vae_lstm"
 FRAMES = (70, 90, 120, 160, 210)  # Habibie Tables 1-2 columns (0-based frame indices here)
 

@@ -7,7 +7,7 @@ The same function as ``lstm(x[:, None], state)`` (to float rounding, ~1e-7), for
 read one frame at a time.  Measured on the course machine (torch 2.13, one thread, 2 layers of width 256):
 torch's fused LSTM took 1.1-3.6 ms per one-frame call at batch 1-4 and 9.6 ms per step forward + backward;
 these few matrix products take 0.3-0.5 ms and 2.1-3.3 ms.  With it, lesson 04's online-control step
-(`python -m course_lib.bench --only online --repeat 60`) went from a median of 324 ms to 131-144 ms per 10
+(`python -m course_lib.timings --only online --repeat 60`) went from a median of 324 ms to 131-144 ms per 10
 frames (together with `WindowEnergy`'s cached start frames and one `log_prob` per rollout).
 Unidirectional, with biases, no projections and no dropout between layers (what the course's models use);
 anything else raises.

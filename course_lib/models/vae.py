@@ -1,6 +1,6 @@
 """Pose VAE and conditional pose VAE: the variational autoencoder of Habibie et al. 2017, sec. 3.1.
 
-Taught in notebooks/01_vae_basics.ipynb (the JAX twin is ``course_lib/jax_vae.py``).
+Taught in notebooks/01_vae_basics.ipynb (the JAX twin is ``course_lib/models/jax_vae.py``).
 
 One pose x (the 63 joint positions of ``positions_control``, in the floor-projected root
 frame, normalised per feature) is encoded to a diagonal Gaussian posterior

@@ -1,7 +1,7 @@
 """Timings of the course's core operations, as a Markdown table.
 
-    python -m course_lib.bench                 # every benchmark, median of 20 runs
-    python -m course_lib.bench --only fk --repeat 50
+    python -m course_lib.timings                 # every benchmark, median of 20 runs
+    python -m course_lib.timings --only fk --repeat 50
 
 A benchmark is a setup function, registered with ``@register("name")``, that builds
 its inputs and returns a zero-argument callable; only that callable is timed (after
