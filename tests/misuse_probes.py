@@ -1005,6 +1005,23 @@ def _reproduce(*args, manifest: bool = True):
     return case
 
 
+def _moglow_command(forward, yaw_rate=0.0):
+    def case(tmp):
+        from course_lib.experiments import moglow as E
+
+        data = E.load_data("ci", 0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            c = E.constant_control(data, 1, 3, forward, 0.0, yaw_rate)
+        raw = c[0, 0].double().numpy() * data.stats[1][63:] + data.stats[0][63:]
+        low, high = data.control_range()
+        said = " / ".join(str(w.message) for w in caught)
+        if not ((raw >= low - 1e-6).all() and (raw <= high + 1e-6).all() and "outside the training data" in said):
+            raise AssertionError(f"control {raw} outside {low}..{high}; warned: {said!r}")
+        return f"handled: warned ({said[:70]}...), clamped to {raw[0]:.2f} m/s forward, {raw[2]:.2f} rad/s"
+    return case
+
+
 def _fid_mixed_joints(tmp):
     from course_lib.evaluation import fid
 
@@ -1065,6 +1082,11 @@ def _writer_cases() -> list[Case]:
         Case("verified inputs", "a stats file copied without its sidecar", _stats_copied_without_sidecar,
              "ValueError", "cannot verify"),
         Case("controllers", "OnlineController.step(100.0, 0)", _online(100.0), "handled", "warned"),
+        Case("controllers", "MoGlow constant_control(forward=100 m/s)", _moglow_command(100.0), "handled", "warned"),
+        Case("controllers", "MoGlow constant_control(yaw_rate=-50 rad/s)", _moglow_command(1.0, -50.0), "handled",
+             "warned"),
+        Case("controllers", "MoGlow constant_control(forward=nan)", _moglow_command(math.nan), "ValueError",
+             "must be finite"),
         Case("controllers", "OnlineController.step(nan, 0)", _online_bad(math.nan), "ValueError", "finite speed"),
         Case("controllers", "OnlineController.step(-1, 0)", _online_bad(-1.0), "ValueError", "speed >= 0"),
         Case("controllers", "OnlineController.step(1, inf)", _online_bad(1.0, math.inf), "ValueError",

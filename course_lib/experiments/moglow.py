@@ -31,6 +31,7 @@ import dataclasses
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,30 @@ class MoGlowData:
     @property
     def pose_dim(self) -> int:
         return int((~self.fixed).sum())
+
+    def control_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """The training split's control range: (low (3,), high (3,)) in raw units (forward m/s, sideways m/s,
+        yaw rate rad/s), over every frame of every training window."""
+        c = self.train["controls"].double().numpy().reshape(-1, 3) * self.stats[1][63:] + self.stats[0][63:]
+        return c.min(0), c.max(0)
+
+    def within_control_range(self, controls: torch.Tensor, who: str) -> torch.Tensor:
+        """Standardised controls (..., 3) clamped to the training split's range, with a warning that says which
+        values were outside and where the range is: the model has never seen them (clamping is what it can do)."""
+        mean, std = self.stats[0][63:], self.stats[1][63:]
+        low, high = self.control_range()
+        lo = torch.as_tensor((low - mean) / std, dtype=controls.dtype)
+        hi = torch.as_tensor((high - mean) / std, dtype=controls.dtype)
+        clamped = torch.maximum(torch.minimum(controls, hi), lo)
+        if not torch.equal(clamped, controls):
+            raw = controls.double().numpy().reshape(-1, 3) * std + mean
+            names = ("forward m/s", "sideways m/s", "yaw rate rad/s")
+            outside = [f"{n} {raw[:, k].min():.2f}..{raw[:, k].max():.2f} (data {low[k]:.2f}..{high[k]:.2f})"
+                       for k, n in enumerate(names)
+                       if raw[:, k].min() < low[k] - 1e-9 or raw[:, k].max() > high[k] + 1e-9]
+            warnings.warn(f"{who}: control outside the training data's range, clamped: {'; '.join(outside)}",
+                          stacklevel=3)
+        return clamped
 
     def features(self, poses: torch.Tensor, controls: torch.Tensor) -> np.ndarray:
         """Standardised (N, T, D), (N, T, 3) -> raw positions_control features (N, T, 66) (fixed values restored)."""
@@ -227,7 +252,11 @@ def constant_control(data: MoGlowData, n: int, frames: int, forward: float = 0.0
     """A constant raw control (m/s, m/s, rad/s) for n sequences of `frames` -> standardised (n, frames, 3)."""
     mean, std = data.stats[0][63:], data.stats[1][63:]
     c = (np.array([forward, sideways, yaw_rate]) - mean) / std
-    return torch.from_numpy(c).float().expand(n, frames, 3).contiguous()
+    if not np.isfinite(c).all():
+        raise ValueError(f"constant_control: forward, sideways and yaw_rate must be finite, got "
+                         f"{forward}, {sideways}, {yaw_rate}")
+    c = data.within_control_range(torch.from_numpy(c), "constant_control").float()
+    return c.expand(n, frames, 3).contiguous()
 
 
 def start_frames(data: MoGlowData, n: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
