@@ -1022,6 +1022,15 @@ def _moglow_command(forward, yaw_rate=0.0):
     return case
 
 
+def _hvrnn_attribute(attribute):
+    def case(tmp):
+        from course_lib.experiments import hvrnn as H
+
+        H.generate(H.load_model("hvrnn_proposed"), n_per=1, frames=10, attribute=attribute)
+        return "generated"
+    return case
+
+
 def _fid_mixed_joints(tmp):
     from course_lib.evaluation import fid
 
@@ -1087,6 +1096,8 @@ def _writer_cases() -> list[Case]:
              "warned"),
         Case("controllers", "MoGlow constant_control(forward=nan)", _moglow_command(math.nan), "ValueError",
              "must be finite"),
+        Case("controllers", "hvrnn.generate(attribute=('fly', 'x'))", _hvrnn_attribute(("fly", "x")), "ValueError",
+             "action one of"),
         Case("controllers", "OnlineController.step(nan, 0)", _online_bad(math.nan), "ValueError", "finite speed"),
         Case("controllers", "OnlineController.step(-1, 0)", _online_bad(-1.0), "ValueError", "speed >= 0"),
         Case("controllers", "OnlineController.step(1, inf)", _online_bad(1.0, math.inf), "ValueError",

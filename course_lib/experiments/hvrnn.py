@@ -298,6 +298,9 @@ def generate(model, n_per: int = 100, frames: int = SEQ_LEN, seed: int = 0, attr
     if attribute is None:
         a, s = attribute_grid(n_per)
     else:
+        if len(attribute) != 2 or attribute[0] not in ACTIONS or attribute[1] not in STYLES:
+            raise ValueError(f"generate: attribute must be (action, style) with action one of {ACTIONS} and style "
+                             f"one of {STYLES}, got {attribute!r}")
         a, s = torch.full((n_per,), ACTIONS.index(attribute[0])), torch.full((n_per,), STYLES.index(attribute[1]))
     x = model.sample(a, s, frames, generator=torch.Generator().manual_seed(seed))
     return {"x": x.float(), "action_id": a, "style_id": s, "subject": ["generated"] * len(a)}
