@@ -249,6 +249,15 @@ def test_reproduce_runs_manifest_commands_in_order(tmp_path, capsys):
     assert "reproduce: [b_model, c_model] $ python -c" in capsys.readouterr().out
 
 
+def test_make_reproduce_reruns_every_lesson_including_those_without_checkpoints(capsys):
+    """Every lesson's reproduction command is run by `make reproduce`: the manifest's, and lesson 04's (it trains
+    nothing, so only its results file names it)."""
+    assert reproduce.main(["--manifest", str(REPO / "checkpoints" / "MANIFEST.json"), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    for name in ("vae_lstm", "gmm_rnn", "control", "hvrnn", "moglow"):
+        assert out.count(f"$ python -m course_lib.reproduce {name}\n") == 1, name
+
+
 def test_reproduce_stops_at_failure_and_rejects_bad_manifests(tmp_path):
     manifest = tmp_path / "MANIFEST.json"
     manifest.write_text(json.dumps([{"name": "bad", "command": "exit 3"}, {"name": "never", "command": "touch x"}]))

@@ -1,4 +1,5 @@
-"""Retrain every checkpoint with the command recorded for it in checkpoints/MANIFEST.json.
+"""Retrain every checkpoint with the command recorded for it in checkpoints/MANIFEST.json, then rerun the lessons
+that train nothing (their command is in results/<name>.json).
 
 Usage: python tools/reproduce.py [--manifest checkpoints/MANIFEST.json] [--only NAME ...] [--dry-run]
 
@@ -35,6 +36,17 @@ def read_manifest(path: Path) -> list[tuple[str, str]]:
         if not isinstance(command, str) or not command.strip():
             raise ValueError(f"{path}: entry {name!r} has no 'command' string")
         jobs.append((name, command))
+    return jobs
+
+
+def results_jobs(results: Path) -> list[tuple[str, str]]:
+    """(name, command) of each lesson results file in `results` (results/<name>.json with a "command"): a lesson
+    that trains nothing (lesson 04's control) has no manifest entry, only its results file."""
+    jobs = []
+    for path in sorted(results.glob("*.json")) if results.is_dir() else []:
+        command = json.loads(path.read_text(encoding="utf-8")).get("command")
+        if isinstance(command, str) and command.strip():
+            jobs.append((path.stem, command))
     return jobs
 
 
@@ -75,6 +87,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"reproduce: {args.manifest} does not exist: no checkpoints to reproduce")
         return 0
     jobs = read_manifest(args.manifest)
+    known = {command for _, command in jobs}
+    jobs += [(name, command) for name, command in results_jobs(args.manifest.resolve().parent.parent / "results")
+             if command not in known]
     if args.only:
         unknown = sorted(set(args.only) - {name for name, _ in jobs})
         if unknown:
