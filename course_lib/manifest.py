@@ -94,6 +94,9 @@ def expected_sha256(path: Path, mpath: Path) -> tuple[str, str]:
         "or load it with verify=False.")
 
 
+VERIFIED: dict[str, str] = {}  # every file verified in this process -> its sha256 (what a study records it used)
+
+
 def verify_file(path: str | os.PathLike, manifest: str | os.PathLike | None = None) -> Path:
     """Raise ValueError unless ``path``'s sha256 matches its manifest entry (default manifest: MANIFEST.json
     beside it) or, where no manifest lists it, its sidecar; the message says how to proceed.  Returns the path."""
@@ -105,6 +108,7 @@ def verify_file(path: str | os.PathLike, manifest: str | os.PathLike | None = No
     if actual != expected:
         raise ValueError(f"sha256 mismatch for {path}: expected {expected[:12]}..., file {actual[:12]}...; "
                          f"the file is corrupt or stale. {fix}")
+    VERIFIED[str(path.resolve())] = actual
     return path
 
 

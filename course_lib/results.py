@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from course_lib.checksums import sha256_file
-from course_lib.manifest import entry_name, manifest_path, read_manifest
+from course_lib.manifest import VERIFIED, entry_name, manifest_path, read_manifest
 from course_lib.paths import CHECKPOINTS, REPO_ROOT
 
 __all__ = ["checkpoint_metrics", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
@@ -64,9 +64,11 @@ def study_result(name: str) -> dict:
     return json.loads(found[0].read_text())
 
 
-def provenance(checkpoints=(), argv=None) -> dict:
-    """What a study records about itself: the command that reran it (``argv``, default sys.argv), the repository's
-    commit (with "+changes" when the work tree differs from it) and the sha256 of each checkpoint file it used."""
+def provenance(checkpoints=None, argv=None) -> dict:
+    """What a study records about itself, to merge into the JSON it writes (``{**result, **provenance()}``): the
+    command that ran it (``argv``, default sys.argv), the repository's commit (with "+changes" when tracked files
+    differ from it) and the sha256 of each checkpoint file it used: ``checkpoints`` (paths), default every file
+    this process loaded through a verified load (`manifest.VERIFIED`: checkpoints and their statistics)."""
     root = Path(__file__).resolve().parents[1]
 
     def git(*args):
@@ -82,8 +84,9 @@ def provenance(checkpoints=(), argv=None) -> dict:
     script = Path(argv[0]) if argv else Path("?")
     if script.is_absolute() and root in script.parents:
         argv[0] = str(script.relative_to(root))
-    return {"command": shlex.join(["python", *argv]), "commit": commit,
-            "checkpoints_sha256": {Path(p).name: sha256_file(p) for p in checkpoints}}
+    used = ({Path(p).name: sha256_file(p) for p in checkpoints} if checkpoints is not None
+            else {Path(p).name: digest for p, digest in sorted(VERIFIED.items())})
+    return {"command": shlex.join(["python", *argv]), "commit": commit, "checkpoints_sha256": used}
 
 
 def rounded(d, digits: int = 6):

@@ -1,7 +1,9 @@
 """course_lib.results: `rounded` (what every experiment writes to JSON), the lessons' results files, and the
 shipped manifest holding provenance only (with the configs the lessons build)."""
 
+import hashlib
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -134,3 +136,18 @@ def test_the_refiners_were_trained_with_the_recorded_balance_band(repo_root):
             history = recorded_metrics(repo_root / "checkpoints" / file)["history"]
             assert replay(history["d_loss"], config["d_loss_low"], config["d_loss_high"]) == history["r_updates"], file
             assert replay(history["d_loss"], 0.01, 1.0) != history["r_updates"], file
+
+
+def test_provenance_records_the_command_the_commit_and_every_verified_file(tmp_path):
+    from course_lib.datasets import load_stats
+    from course_lib.results import provenance
+
+    load_stats(Path(__file__).resolve().parents[1] / "checkpoints" / "moglow_stats.npz")  # a verified load
+    record = provenance(argv=["studies/06_moglow/some_study.py", "--out", "x.json"])
+    assert record["command"] == "python studies/06_moglow/some_study.py --out x.json"
+    assert len(record["commit"].removesuffix("+changes")) == 40
+    shipped = json.loads((Path(__file__).resolve().parents[1] / "checkpoints" / "MANIFEST.json").read_text())
+    assert record["checkpoints_sha256"]["moglow_stats.npz"] == shipped["moglow_stats"]["sha256"]
+    (tmp_path / "w.pt").write_bytes(b"weights")
+    named = provenance([tmp_path / "w.pt"], argv=["s.py"])["checkpoints_sha256"]
+    assert named == {"w.pt": hashlib.sha256(b"weights").hexdigest()}
