@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 def run(smoke: bool = False, out_path: Path | None = None) -> dict:
     from course_lib.experiments import vae_lstm as V
-    from course_lib.results import rounded
+    from course_lib.results import provenance, rounded
 
     spec = V.DataSpec(n_clips=30, one_body=True) if smoke else V.DataSpec(one_body=True)
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)
@@ -51,6 +51,7 @@ def run(smoke: bool = False, out_path: Path | None = None) -> dict:
                                          "matched_control_pairs")},
                    "must_show": {k: list(v) for k, v in V.must_show(res).items()}})
     if out_path:
+        out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
         out_path.write_text(json.dumps(out, indent=1) + "\n")
     return out
 

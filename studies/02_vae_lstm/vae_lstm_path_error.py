@@ -45,7 +45,7 @@ def scored(model, V, base: dict, test_ds) -> dict:
 
 def run(names, smoke: bool = False, out_path: Path | None = None, seed: int = 0) -> dict:
     from course_lib.experiments import vae_lstm as V
-    from course_lib.results import rounded
+    from course_lib.results import provenance, rounded
 
     spec = V.DataSpec(n_clips=30) if smoke else V.DataSpec()
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)
@@ -61,7 +61,8 @@ def run(names, smoke: bool = False, out_path: Path | None = None, seed: int = 0)
                                   progress=False, config=V.variant_config(name))
         key = name if seed == 0 else f"{name}, training seed {seed}"
         out["recipes"][key] = rounded({"overrides": V.VARIANTS[name], "seed": seed, "train_seconds": hist.seconds,
-                                       "steps": hist.num_steps, **scored(model, V, base, test_ds)})
+                                       "steps": hist.num_steps, **scored(model, V, base, test_ds),
+                                       **provenance()})  # the run that added this recipe
         print(f"{name}: {hist}", file=sys.stderr, flush=True)
         save(out, out_path)  # after every recipe: a long run keeps what it finished
     save(out, out_path)
@@ -70,6 +71,9 @@ def run(names, smoke: bool = False, out_path: Path | None = None, seed: int = 0)
 
 def save(out: dict, out_path: Path | None) -> None:
     if out_path:
+        from course_lib.results import provenance
+
+        out.update(provenance())  # the run that wrote the file; each recipe keeps the run that made it
         out_path.write_text(json.dumps(out, indent=1) + "\n")
 
 

@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
     from course_lib.experiments import vae_lstm as V
-    from course_lib.results import rounded
+    from course_lib.results import provenance, rounded
 
     spec = V.DataSpec(n_clips=30) if smoke else V.DataSpec()
     clips = V.generate_clips(spec, progress=False) if smoke else V.load_clips(spec, progress=False)
@@ -44,10 +44,11 @@ def run(names, smoke: bool = False, out_path: Path | None = None) -> dict:
                                     for k in ("table1", "table2")},
             "prior_diversity": res["prior_diversity"], "posterior_pool_diversity": res["posterior_pool_diversity"],
             "latent": res["latent"],
-            "must_show": {k: list(v) for k, v in V.must_show(res).items()}})
+            "must_show": {k: list(v) for k, v in V.must_show(res).items()},
+            **provenance()})  # the run that added this variant
         print(f"{name}: {hist}", file=sys.stderr, flush=True)
         if out_path:  # written after every variant: a long sweep keeps what it finished
-            out_path.write_text(json.dumps(out, indent=1) + "\n")
+            out_path.write_text(json.dumps({**out, **provenance()}, indent=1) + "\n")  # + the run that wrote it
     return out
 
 

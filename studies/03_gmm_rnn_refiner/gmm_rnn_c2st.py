@@ -22,7 +22,7 @@ import torch
 
 from course_lib.evaluation import c2st, fid
 from course_lib.experiments import gmm_rnn as X
-from course_lib.results import rounded
+from course_lib.results import provenance, rounded
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_c2st.py --out studies/03_gmm_rnn_refiner/gmm_rnn_c2st_results.json"
 
@@ -45,6 +45,7 @@ def write(out: dict, path: str) -> None:
     out["summary"] = summary(out["by_generation_seed"])
     if out.get("fid_by_generation_seed"):  # studies/03_gmm_rnn_refiner/gmm_rnn_c2st_bits.py records the C2ST alone
         out["fid_summary"] = summary(out["fid_by_generation_seed"])
+    out.update(provenance())  # the command run (replaces COMMAND), the commit, the checkpoints' sha256
     with open(path, "w") as f:
         json.dump(rounded(out, 4), f, indent=1)
         f.write("\n")

@@ -21,6 +21,7 @@ from course_lib.evaluation import apd, foot_skate, jitter
 from course_lib.evaluation.contacts import lower_toe
 from course_lib.experiments import gmm_rnn as X
 from course_lib.representations import feature_names
+from course_lib.results import provenance
 
 
 def run(spec, model, start, stats, mocap) -> tuple[dict, torch.Tensor]:
@@ -62,6 +63,7 @@ def main() -> None:
                                                                   float(high[i] * s[i] + m[i])]}
                 for i in np.argsort(-out)[:6]}
         print(name, json.dumps(X.rounded(results[name])), flush=True)
+    results = {**results, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(X.rounded(results), f, indent=1)
 

@@ -27,6 +27,7 @@ import torch
 from course_lib.evaluation.contacts import lower_toe
 from course_lib.experiments import gmm_rnn as X
 from course_lib.representations import encode_state_features, feature_names
+from course_lib.results import provenance
 
 PITCH = feature_names("state_features").index("root_pitch")
 SETTINGS = {"shipped (bias 2, angle noise 0.3)": {},
@@ -100,6 +101,7 @@ def main() -> None:
     for name, change in SETTINGS.items():
         results[name] = r = run(replace(spec, **change), model, test[0], stats, test)
         print(name, json.dumps(X.rounded(r)), flush=True)
+    results = {**results, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(X.rounded(results), f, indent=1)
 

@@ -31,6 +31,7 @@ from course_lib.evaluation import classifier_features, fid, load_classifier
 from course_lib.evaluation.contacts import contact_agreement, lower_toe
 from course_lib.experiments import gmm_rnn as X
 from course_lib.representations import encode_state_features, feature_names
+from course_lib.results import provenance
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_open_causes.py --out studies/03_gmm_rnn_refiner/gmm_rnn_open_causes_results.json"
 GROUPS = {"root": list(range(6)), "legs": list(range(6, 30)), "spine/arms": list(range(30, 66)),
@@ -352,10 +353,12 @@ def main(argv=None) -> None:
     cmd = "python studies/03_gmm_rnn_refiner/gmm_rnn_open_causes.py " + " ".join(sys.argv[1:] if argv is None else argv)
     out = {"command": COMMAND if argv is None and sys.argv[1:] == ["--out", "studies/03_gmm_rnn_refiner/gmm_rnn_open_causes_results.json"]
            else cmd, "test_clips": len(test), "motions": args.motions}
+    merged = False
     if args.only and Path(args.out).exists():  # re-measure some parts, keep the others (and the full run's command)
         kept = json.loads(Path(args.out).read_text())
         if (kept.get("test_clips"), kept.get("motions")) == (len(test), args.motions):
             out = dict(kept, re_measured_by=kept.get("re_measured_by", []) + [cmd])
+            merged = True
     parts = {"fid": lambda: fid_experiment(model, stats, spec, test, train, args.boot),
              "bits": lambda: bits_experiment(model, stats, spec, test),
              "grounding": lambda: grounding_experiment(model, stats, spec, test)}
@@ -364,6 +367,11 @@ def main(argv=None) -> None:
         out[name] = parts[name]()
         out[f"{name}_seconds"] = time.perf_counter() - t0
         print(f"{name}: {out[f'{name}_seconds']:.0f} s", file=sys.stderr)
+    prov = provenance(argv=None if argv is None else [__file__, *argv])  # command run, commit, checkpoints' sha256
+    if merged:  # the parts this run re-measured carry its provenance; the file's own is the full run's
+        out["added_provenance"] = {**out.get("added_provenance", {}), **{name: prov for name in args.only}}
+    else:
+        out = {**out, **prov}
     with open(args.out, "w") as f:
         json.dump(X.rounded(out), f, indent=1, default=float)
         f.write("\n")

@@ -23,6 +23,7 @@ from dataclasses import replace
 import torch
 
 from course_lib.experiments import gmm_rnn as X
+from course_lib.results import provenance
 
 
 def main() -> None:
@@ -50,6 +51,7 @@ def main() -> None:
     res["gan"] = summary
     res["setting"] = {"discriminator_joints": args.d_joints, "refiner_pose_lam": args.pose_lam,
                       "d_loss_low": args.low, "d_loss_high": args.high, "refiner_seed": args.seed}
+    res = {**res, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(X.rounded(res), f, indent=1)
 

@@ -19,6 +19,7 @@ import torch
 
 from course_lib.evaluation import fid, foot_skate, jitter
 from course_lib.experiments import gmm_rnn as X
+from course_lib.results import provenance
 
 LEGS = ("UpLeg", "Leg", "Foot", "ToeBase")
 
@@ -98,10 +99,13 @@ def main() -> None:
         for name in refiners:
             run[f"{name} clamp test"] = clamp_test(cont["RNN"], cont[name], stats, test, spec.fps)
         run["seconds"] = time.perf_counter() - t0
+        run.update(provenance())  # the run that made this record (runs from an earlier file keep theirs)
         out["runs"][f"pose_lam {lam}, D sees {joints}" + (f", legs {args.leg_pose_lam}" if args.leg_pose_lam else "")
                     + (f", seed {seed}" if args.seeds != [0] else "")] = run
         brief = {k: {m: round(v[m], 3) for m in ("fid", "foot_skate", "jitter")} for k, v in run["quality"].items()}
         print(lam, joints, seed, brief, flush=True)
+        # the command above is the script's own: it spells out the defaults the argv may leave out
+        out.update({k: v for k, v in provenance().items() if k != "command"})
         with open(args.out, "w") as f:
             json.dump(X.rounded(out), f, indent=1, default=float)
             f.write("\n")

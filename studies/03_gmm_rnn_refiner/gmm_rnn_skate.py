@@ -115,7 +115,7 @@ def mocap_row(test, spec) -> dict:
 
 def main(argv=None) -> None:
     from course_lib.experiments import gmm_rnn as X
-    from course_lib.results import rounded
+    from course_lib.results import provenance, rounded
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True)
@@ -161,7 +161,7 @@ def main(argv=None) -> None:
             res["seed"] = a.seed
         res["eval_seconds"] = time.perf_counter() - t0 - (res["train_seconds"] or 0)
         key = name if not a.seed else f"{name}, seed {a.seed}"
-        results[key] = rounded(res, 4)
+        results[key] = {**rounded(res, 4), **provenance()}  # the run that added this row
         a.out.write_text(json.dumps(results, indent=1) + "\n")
         print(key, json.dumps(results[key]), flush=True)
 

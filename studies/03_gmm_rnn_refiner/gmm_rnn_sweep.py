@@ -124,6 +124,7 @@ def run_variant(args) -> tuple[str, dict, dict]:
 
 def main(argv=None) -> None:
     from course_lib.experiments.gmm_rnn import Lesson03Spec, lesson03_data
+    from course_lib.results import provenance
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True)
@@ -140,7 +141,7 @@ def main(argv=None) -> None:
     with ctx.Pool(a.jobs) as pool:
         for name, res, state in pool.imap_unordered(run_variant, [(n, a.device, data, a.smoke) for n in names]):
             results[name], models[name] = res, state
-            (a.out / "results.json").write_text(json.dumps(results, indent=1))
+            (a.out / "results.json").write_text(json.dumps({**results, **provenance()}, indent=1))
             torch.save(models, a.out / "models.pt")
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import CHECKPOINTS, rounded
+from course_lib.results import provenance
 
 GAITS = ("walk", "run")
 SEEDS = (0, 1, 2)  # seed 0: the recorded run's rows
@@ -63,6 +64,8 @@ def main() -> None:
     out = {"command": "python studies/04_map_control/control_baseline_seeds.py --out studies/04_map_control/control_baseline_seeds_results.json",
            "seeds": list(SEEDS), "seed_0": "the recorded run's rows (results/control.json)", "rows": rows,
            "summary": summary, "baselines_closer_on_the_mean": beaten}
+    # the designs ran in worker processes: the files the prior loads there (design.default_prior)
+    out = {**out, **provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])}
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1)
 

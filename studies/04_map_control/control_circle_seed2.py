@@ -19,6 +19,7 @@ from course_lib.control import DesignConfig
 from course_lib.control.energy import nearest_on_polyline
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 
 def windows(seed: int) -> dict:
@@ -49,6 +50,7 @@ def main() -> None:
             print(f"  window {w['window']:2d}: control {w['control']:8.1f} total {w['total']:9.1f} "
                   f"retried {str(w['retried']):5s} distance mean {w['mean_distance_m']:.3f} max "
                   f"{w['max_distance_m']:.3f} m", flush=True)
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1)
 

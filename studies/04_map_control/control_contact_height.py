@@ -18,7 +18,8 @@ import torch
 from course_lib.control import DesignConfig, design_motion
 from course_lib.evaluation.contacts import skate_sources
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
+from course_lib.experiments.gmm_rnn import CHECKPOINTS, rounded
+from course_lib.results import provenance
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/04_map_control/control_contact_height.py --out studies/04_map_control/control_contact_height_results.json"
 RULES = {"bits only (the paper's labels)": None, "bits or toe below 5 cm (shipped)": DesignConfig().contact_height}
@@ -54,6 +55,8 @@ def main(argv=None) -> None:
         rows[key] = row
         print(key, {k: round(v, 3) for k, v in row.items()}, flush=True)
     out = {"command": COMMAND, "seed": 0, "rows": rounded(rows, 4)}
+    # the designs ran in worker processes: the files the prior loads there (design.default_prior)
+    out = {**out, **provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])}
     with open(args.out, "w") as f:
         json.dump(out, f, indent=1)
         f.write("\n")

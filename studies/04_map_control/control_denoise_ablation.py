@@ -18,6 +18,7 @@ from course_lib.control import DenoiseConfig, denoise
 from course_lib.datasets import _clip_seed
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 from course_lib.synthetic import add_noise
 
 EARLIER = DenoiseConfig(start_cutoff_hz=None, sigma_angle=0.05, first_frame="input", held_frames="keep")
@@ -42,6 +43,7 @@ def main() -> None:
         out["parts"][name] = mean
         print(name, {k: round(v["mean_joint_error_m"], 4) if isinstance(v, dict) else round(v, 3)
                      for k, v in mean.items()}, flush=True)
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1)
         f.write("\n")

@@ -16,6 +16,7 @@ from control_denoise_contact import scores  # the script's own folder is on sys.
 from course_lib.control.denoise import DenoiseConfig
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 ITERATIONS = (80, 240)
 
@@ -31,6 +32,7 @@ def main() -> None:
     for n in ITERATIONS:
         results["tuning"][f"iterations={n}"] = r = scores(tuning, DenoiseConfig(iterations=n))
         print("tuning", n, {k: round(v, 4) for k, v in r.items()}, flush=True)
+    results = {**results, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(results), f, indent=1)
 

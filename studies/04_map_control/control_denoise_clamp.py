@@ -26,6 +26,7 @@ from course_lib.datasets import noisy_copies
 from course_lib.evaluation import foot_skate
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 
 def mixes(out, clean) -> dict:
@@ -64,6 +65,7 @@ def main() -> None:
         print(f"{k:32s} skate {v:.4f} m/s")
     print(f"root error {results['root_error_m']:.4f} m, "
           f"its change per frame {results['root_error_change_per_frame_m']:.4f} m")
+    results = {**results, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(results), f, indent=1)
 

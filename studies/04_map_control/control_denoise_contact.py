@@ -27,6 +27,7 @@ from course_lib.datasets import noisy_copies
 from course_lib.evaluation import foot_skate
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 SETTINGS = ((None, 1.0), (0.03, 1.0), (0.05, 1.0), (None, 100.0), (0.03, 100.0), (0.05, 100.0))  # (m, weight)
 
@@ -81,7 +82,8 @@ def run_sweep(settings: dict, command: str) -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     with open(args.out, "w") as f:
-        json.dump(rounded(sweep(settings, command)), f, indent=1)
+        # + the command run (replaces ``command``), the commit, the checkpoints' sha256
+        json.dump(rounded({**sweep(settings, command), **provenance()}), f, indent=1)
 
 
 def main() -> None:

@@ -35,6 +35,7 @@ from course_lib.datasets import _clip_seed
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 from course_lib.representations import decode_state_features, encode_state_features, root_start
+from course_lib.results import provenance
 from course_lib.synthetic import add_noise
 
 NOISE = {"clean": None, "spikes": {"jitter_sd": 0.0, "root_sd": 0.0, "drop_rate": 0.0}, "all": {}}
@@ -132,6 +133,8 @@ def main() -> None:
         res["commands"][args.inputs] = ([prev] if isinstance(prev, str) else prev) + [cmd]
     else:
         res["commands"][args.inputs] = [cmd]
+    # each run's provenance beside its command: kept for --only runs, as the commands are
+    runs = res.get("provenance", {}).get(args.inputs, []) if args.only else []
     block = res["inputs"].setdefault(args.inputs, {})
     block["input_error_m"] = float(np.mean([C._denoise_scores(n, c)["mean_joint_error_m"]
                                             for n, c in zip(noisy, clean, strict=True)]))
@@ -155,6 +158,7 @@ def main() -> None:
         block.setdefault("conditions", {})[name] = row
         print(f"{args.inputs:6s} {name:50s} {100 * row['mean_joint_error_m']:.3f} cm "
               f"(input {100 * block['input_error_m']:.3f}; {row['seconds']:.0f} s)", flush=True)
+        res.setdefault("provenance", {})[args.inputs] = runs + [provenance()]
         path.write_text(json.dumps(rounded(res), indent=1) + "\n")
 
 

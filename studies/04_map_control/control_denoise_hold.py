@@ -25,6 +25,7 @@ from course_lib.experiments import gmm_rnn as X
 from course_lib.models.contact_cleanup import plant_feet
 from course_lib.motion import CONTACT_SPEED, foot_contacts
 from course_lib.representations import decode_state_features, encode_state_features, root_start
+from course_lib.results import provenance
 
 SPEED = 0.6  # m/s, the laxer stance threshold for the low-passed start
 
@@ -67,6 +68,7 @@ def main() -> None:
                            for k, v in counts.items()},
            "config": f"DenoiseConfig(contact_bits='start', stance_speed={SPEED})",
            "results": {k: {q: float(np.nanmean([r[q] for r in v])) for q in v[0]} for k, v in rows.items()}}
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     print(json.dumps(X.rounded(out), indent=1))
     with open(args.out, "w") as f:
         f.write(json.dumps(X.rounded(out), indent=1) + "\n")

@@ -28,6 +28,7 @@ from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import CHECKPOINTS, contact_columns, rounded
 from course_lib.models.contact_cleanup import plant_feet
 from course_lib.representations import decode_state_features, encode_state_features, root_start
+from course_lib.results import provenance
 
 
 def planted(m, columns=None):
@@ -67,6 +68,7 @@ def tuning_and_scored(score_set, command: str, description: str, **rounding) -> 
     for name, first in (("tuning", 4), ("scored", 0)):
         results[name] = r = score_set(C.denoise_clips(first=first))
         print(name, json.dumps(rounded(r, **rounding)), flush=True)
+    results = {**results, **provenance()}  # the command run (replaces ``command``), commit, checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(results, **rounding), f, indent=1)
 

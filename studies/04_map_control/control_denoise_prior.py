@@ -27,6 +27,7 @@ from course_lib.control.denoise import DenoiseConfig
 from course_lib.datasets import noisy_copies
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 
 def main() -> None:
@@ -53,6 +54,7 @@ def main() -> None:
         print(f"{'clean input, clean start' + tag:40s}", {k: round(v, 4) for k, v in r.items()}, flush=True)
     out = {"command": "python studies/04_map_control/control_denoise_prior.py --out studies/04_map_control/control_denoise_prior_results.json",
            "clips": len(clean), "rows": rows}
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1)
 

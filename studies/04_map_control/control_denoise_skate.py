@@ -23,6 +23,7 @@ from course_lib.datasets import noisy_copies
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 from course_lib.motion import CONTACT_HEIGHT
+from course_lib.results import provenance
 
 TOES = ("LeftToeBase", "RightToeBase")
 
@@ -70,6 +71,7 @@ def main() -> None:
         tot["all"]["mean_speed_m_s"] = tot["all"]["speed_sum"] / max(tot["all"]["pairs"], 1)
         res[label] = tot
         print(label, json.dumps(rounded(tot, 4)), flush=True)
+    res = {**res, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(res), indent=1) + "\n")
 

@@ -28,6 +28,7 @@ from course_lib.control.spikes import SPIKE_ANGLE, median_deviation
 from course_lib.datasets import noisy_copies
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 KICK = 0.15  # rad: a spiked frame's joint moved more than this by the kick counts as spiked (jitter: 0.02 rad sd)
 
@@ -91,6 +92,7 @@ def main() -> None:
     print(out["detector"], flush=True)
     out["tuning clips (4-7)"] = filter_rows(4)
     out["scored clips (0-3)"] = filter_rows(0)
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 4), indent=1) + "\n")
 

@@ -28,6 +28,7 @@ from course_lib.control.lowpass import lowpass
 from course_lib.datasets import noisy_copies
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 # the earlier settings; each row changes some
 BASE = DenoiseConfig(sigma_angle=0.05, contact_bits="input", first_frame="input", held_frames="keep")
@@ -122,6 +123,11 @@ def main() -> None:
                               "prior_min_std": default.prior_min_std, "contact_bits": default.contact_bits,
                               "first_frame": default.first_frame, "held_frames": default.held_frames}
     print("best:", best, "| shipped default:", res["shipped_default"])
+    if args.only:  # the rows this run added carry its provenance; the file's own is the full run's
+        prov = provenance()  # the command run, the commit, the checkpoints' sha256
+        res["added_provenance"] = {**res.get("added_provenance", {}), **{name: prov for name in args.only}}
+    else:
+        res = {**res, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(res), indent=1) + "\n")
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import CHECKPOINTS, rounded
+from course_lib.results import provenance
 
 SEEDS_FILE = Path(__file__).with_name("control_baseline_seeds_results.json")
 METHODS = ("ours", "lbfgs", "best_of_n")
@@ -48,6 +49,8 @@ def main() -> None:
     out = {"command": f"OMP_NUM_THREADS=1 python studies/04_map_control/control_equal_time_seeds.py --out {args.out}",
            "seed_0": "the recorded run's equal_time rows (results/control.json)",
            "per_seed": {str(s): v for s, v in per_seed.items()}, "summary": summary}
+    # the designs ran in worker processes: the files the prior loads there (design.default_prior)
+    out = {**out, **provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])}
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 4), indent=1) + "\n")
 

@@ -19,6 +19,7 @@ from course_lib.control import design_motion
 from course_lib.control.lbfgs import LbfgsConfig
 from course_lib.experiments import control as X
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 CASES = (("s_curve", "walk"), ("line", "run"), ("circle_r2", "walk"), ("u_turn", "run"))
 KEYS = ("mean_root_to_curve_m", "end_distance_m", "foot_skate_m_s")
@@ -46,6 +47,7 @@ def main() -> None:
                                            "end": w[0]["terms"]["total"], "control_end": w[0]["terms"]["control"]}}
         res["cases"][f"{name}/{gait}"] = row
         print(name, gait, {k: round(v["end_distance_m"], 3) for k, v in row.items()}, flush=True)
+    res = {**res, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(res), indent=1) + "\n")
 

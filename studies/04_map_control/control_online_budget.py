@@ -18,6 +18,7 @@ import torch
 from course_lib.control import OnlineConfig
 from course_lib.experiments.control import online_run
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/04_map_control/control_online_budget.py --out studies/04_map_control/control_online_budget_results.json"
 
@@ -39,6 +40,7 @@ def main(argv=None) -> None:
                 "frames_per_s": r["frames_per_s"]}
             print(args.out, list(rows)[-1], rows[list(rows)[-1]], flush=True)
     out = {"command": COMMAND, "gait": "run", "asked_after_9s_m_s": 2.5, "rows": rounded(rows, 4)}
+    out = {**out, **provenance()}  # the command run (replaces COMMAND), the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(out, f, indent=1)
         f.write("\n")

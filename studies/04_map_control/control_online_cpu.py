@@ -20,6 +20,9 @@ import tempfile
 
 from control_online_seeds import divergence  # the script's own folder is on sys.path
 
+from course_lib.paths import CHECKPOINTS
+from course_lib.results import provenance
+
 COMMAND = "OMP_NUM_THREADS=1 python studies/04_map_control/control_online_cpu.py --out studies/04_map_control/control_online_cpu_results.json"
 GAITS = ("walk", "run")
 
@@ -75,6 +78,8 @@ def main(argv=None) -> None:
                                                  portable["cpu_capability"]],
            "same_capability": {g: compare(host[g], again[g]) for g in GAITS},
            "portable_kernels": {g: compare(host[g], portable[g]) for g in GAITS}}
+    # the runs were child processes: the files the prior loads there (design.default_prior)
+    out = {**out, **provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])}
     with open(args.out, "w") as f:
         json.dump(out, f, indent=1)
         f.write("\n")

@@ -21,6 +21,7 @@ import torch
 from course_lib.control import OnlineConfig
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
+from course_lib.results import provenance
 
 
 def main() -> None:
@@ -52,6 +53,7 @@ def main() -> None:
             "turns": len(turns), "turns_within_2s": int((turns <= 2.0 + 1e-6).sum()),
             "median_frames_per_s": float(np.median(fps))}
         print(retry, out["summary"][f"retry {retry}"], flush=True)
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1, default=float)
         f.write("\n")

@@ -25,6 +25,7 @@ from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 from course_lib.models.contact_cleanup import leg_columns
 from course_lib.motion import CONTACT_HEIGHT
+from course_lib.results import provenance
 
 
 def pairs(m) -> dict:
@@ -55,6 +56,7 @@ def main() -> None:
     out = {"command": f"OMP_NUM_THREADS=1 python studies/04_map_control/control_scurve_skate.py --out {args.out}",
            "case": "s_curve/run/ours, seed 0", "unplanted": pairs(m), "planted": pairs(planted),
            "planted_design": C.measure_design(planted, c)}
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     print(json.dumps(rounded(out, 4), indent=1))
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 4), indent=1) + "\n")

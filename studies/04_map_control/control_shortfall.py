@@ -28,6 +28,7 @@ from course_lib.control import DesignConfig, design_motion
 from course_lib.control.design import default_prior, prepare_start
 from course_lib.control.energy import arc_lengths, arc_position
 from course_lib.experiments import control as C
+from course_lib.results import provenance
 
 OUT = Path(__file__).with_name("control_shortfall.json")
 SECONDS = {"line": 5.0, "circle_r2": 10.5, "s_curve": 5.5}  # the durations studies/04_map_control/control_results.json was run at
@@ -82,6 +83,7 @@ def main(argv=None):
                    "seconds": round(time.perf_counter() - t0, 1), **schedule(m, curve)}
             res["rows"][f"{name}/{rule}"] = row
             print(name, rule, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
+            res = {**res, **provenance(argv=None if argv is None else [__file__, *argv])}  # command run, commit, sha256
             args.out.write_text(json.dumps(res, indent=1) + "\n")
     return res
 

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
+from course_lib.experiments.gmm_rnn import CHECKPOINTS, rounded
+from course_lib.results import provenance
 
 SEEDS = (0, 1, 2)
 BASE_CONFIG = C._config
@@ -57,6 +58,8 @@ def main() -> None:
     out = {"command": "OMP_NUM_THREADS=1 python studies/04_map_control/control_sigma_fit.py --out " + args.out + " --sigma-fit2 "
            + " ".join(f"{s:g}" for s in args.sigma_fit2) + " --cases " + " ".join(args.cases),
            "seeds": list(SEEDS), "rows": rows, "summary": summary}
+    # the designs ran in worker processes: the files the prior loads there (design.default_prior)
+    out = {**out, **provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])}
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 4), indent=1) + "\n")
 

@@ -18,7 +18,8 @@ import json
 import numpy as np
 
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
+from course_lib.experiments.gmm_rnn import CHECKPOINTS, rounded
+from course_lib.results import provenance
 
 CASES = ("s_curve", "u_turn")
 BASE_CURVE = C.curve
@@ -46,6 +47,10 @@ def main() -> None:
         print(n, "scaled", args.scale, summary[n], flush=True)
     out = {"command": f"OMP_NUM_THREADS=1 python studies/04_map_control/control_turn_scale.py --out {args.out} --scale {args.scale:g}",
            "scale": args.scale, "seeds": list(SEEDS), "rows": rows, "summary": summary}
+    # the command above is the script's own (it spells out --scale, which the argv may leave out); the designs
+    # ran in worker processes: the files the prior loads there (design.default_prior)
+    prov = provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])
+    out = {**out, "commit": prov["commit"], "checkpoints_sha256": prov["checkpoints_sha256"]}
     with open(args.out, "w") as f:
         json.dump(rounded(out, 4), f, indent=1)
         f.write("\n")

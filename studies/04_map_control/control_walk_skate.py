@@ -22,7 +22,8 @@ from control_contact_height import measured  # the script's own folder is on sys
 
 from course_lib.control import DesignConfig, design_motion
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
+from course_lib.experiments.gmm_rnn import CHECKPOINTS, rounded
+from course_lib.results import provenance
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/04_map_control/control_walk_skate.py --out studies/04_map_control/control_walk_skate_results.json"
 SEEDS = (0, 1, 2)
@@ -55,6 +56,9 @@ def main(argv=None) -> None:
     run = f"{COMMAND} --weights {' '.join(f'{w:g}' for w in args.weights)}"
     commands = kept.get("commands", [kept["command"] + " --weights 4 16"] if "command" in kept else [])
     out = {"commands": commands + [run], "seeds": list(SEEDS), "weights": weights, "rows": rows}
+    # each run's provenance (the weights it added); the designs ran in worker processes: the files the prior
+    # loads there (design.default_prior)
+    out["provenance"] = kept.get("provenance", []) + [provenance(checkpoints=[CHECKPOINTS / "gmm_rnn.pt", CHECKPOINTS / "gmm_rnn_stats.npz"])]
     with open(args.out, "w") as f:
         json.dump(out, f, indent=1)
         f.write("\n")

@@ -21,6 +21,7 @@ import torch
 from course_lib.control import DesignConfig, design_motion
 from course_lib.control.energy import arc_lengths, arc_position, nearest_on_polyline
 from course_lib.experiments import control as X
+from course_lib.results import provenance
 
 OUT = Path(__file__).with_name("control_window_energies.json")
 
@@ -50,6 +51,9 @@ def main(argv=None):
     out = {"command": f"OMP_NUM_THREADS=1 TQDM_DISABLE=1 python studies/04_map_control/control_window_energies.py --curve {args.curve} "
                       f"--gait {args.gait}", "case": f"{args.curve}/{args.gait}/ours",
            **X.measure_design(m, c), "seconds": seconds, "hops": hops, "windows": windows}
+    # the command above is the script's own (it spells out --curve and --gait, which the argv may leave out)
+    prov = provenance(argv=None if argv is None else [__file__, *argv])
+    out = {**out, "commit": prov["commit"], "checkpoints_sha256": prov["checkpoints_sha256"]}
     args.out.write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps({k: v for k, v in out.items() if k not in ("hops", "windows")}, indent=1))
     for h, w in zip(hops, windows, strict=False):

@@ -98,8 +98,14 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     results = run(args.only or list(VARIANTS), smoke=args.smoke)
     record["results"].update(results)
+    from course_lib.results import provenance
+
+    prov = provenance(argv=None if argv is None else [__file__, *argv])  # command run, commit, checkpoints' sha256
     if args.merge:
         record.setdefault("added_by", {}).update({name: command for name in results})
+        record.setdefault("added_provenance", {}).update({name: prov for name in results})
+    else:
+        record = {**record, **prov}
     args.out.write_text(json.dumps(record, indent=1) + "\n")
     return 0
 

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.results import rounded
+from course_lib.results import provenance, rounded
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from moglow_zero_control_seeds import stepping_speed  # noqa: E402
@@ -41,7 +41,7 @@ def main() -> None:
         results = json.loads((args.folder / "results.json").read_text())
     else:
         results = E.train_moglow(checkpoints=args.folder, steps=args.steps)
-        (args.folder / "results.json").write_text(json.dumps(results, indent=1) + "\n")
+        (args.folder / "results.json").write_text(json.dumps({**results, **provenance()}, indent=1) + "\n")
     data = E.load_data("full")
     seeds = {}
     for label, folder in (("longer", args.folder), ("shipped", E.CHECKPOINTS)):
@@ -53,6 +53,7 @@ def main() -> None:
         print(label, np.round(ratios, 3).tolist(), flush=True)
     out = {"command": "python " + " ".join(sys.argv), "steps": args.steps, "shipped_steps": E.STEPS,
            "results": results, "seeds": list(SEEDS), "zero_control_ratio_over_seeds": seeds}
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 5), indent=1) + "\n")
 

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.results import rounded
+from course_lib.results import provenance, rounded
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from moglow_zero_control_seeds import stepping_speed  # noqa: E402
@@ -62,6 +62,7 @@ def main() -> None:
                               "feet_speed": sp, "ratios": ratios.tolist(), "mean": float(ratios.mean()),
                               "max": float(ratios.max())}
         print(label, out["runs"][label]["test_nll_per_frame"], np.round(ratios, 3).tolist(), flush=True)
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out, 5), indent=1) + "\n")
 

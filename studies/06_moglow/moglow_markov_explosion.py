@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
+from course_lib.results import provenance
 
 SEEDS = list(range(10))  # generation seeds; 0 is the notebook's
 N = 16  # samples per seed, as E.long_samples
@@ -232,6 +233,7 @@ def main() -> None:
                                "fixed_gains": fixed_gains(model)}
         print(name, {k: f"{v['exploded']}/{v['n']}" for k, v in counts.items()}, file=sys.stderr)
     out["seconds_taken"] = round(time.perf_counter() - t0, 1)
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(E.rounded(out, 5), f, indent=1)
         f.write("\n")

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.results import rounded
+from course_lib.results import provenance, rounded
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/06_moglow/moglow_noise_blind.py --out studies/06_moglow/moglow_noise_blind_results.json"
 SDS = (0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4)
@@ -41,6 +41,7 @@ def main() -> None:
         for sd, r in out[kind].items():
             print(kind, sd, {k: round(v, 3) for k, v in r.items()}, file=sys.stderr, flush=True)
     out.update({"moglow_recorded": E.recorded_results()["quality"]["moglow"], "seconds": time.perf_counter() - t0})
+    out = {**out, **provenance()}  # the command run (replaces COMMAND), the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(out, 5), f, indent=1)
 

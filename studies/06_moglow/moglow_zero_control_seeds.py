@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.results import rounded
+from course_lib.results import provenance, rounded
 
 SEEDS = tuple(range(10))
 
@@ -44,6 +44,7 @@ def main() -> None:
                      "max": float(ratios.max()), "seeds_at_or_below_0.3": int((ratios <= 0.3).sum())},
            "pooled_ratio": float(np.mean(speeds["moglow"]) / np.mean(speeds["moglow_nodrop"])),
            "seconds": time.perf_counter() - t0}
+    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         f.write(json.dumps(rounded(out), indent=1) + "\n")
     print(json.dumps(rounded(out["ratio"]), indent=1), rounded(out["pooled_ratio"]))
