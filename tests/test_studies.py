@@ -7,7 +7,7 @@
   says "full" exactly when the JSON has the three keys at its top level; any other provenance text (or none, where
   the README's own default says the JSONs record their command only) lists the JSON as lacking provenance.  So a
   rerun that gives a JSON full provenance must update its README entry, and a README cannot claim it otherwise.
-* The count line of studies/README.md ("N studies, M result files; K record command + commit + checkpoint
+* The count line of studies/README.md ("N studies, M result files; K record(s) command + commit + checkpoint
   sha256") is the truth.
 """
 
@@ -182,7 +182,7 @@ def test_the_readme_parser_on_known_entries(tmp_path):
 
 def test_the_count_line_is_the_truth():
     text = " ".join((STUDIES / "README.md").read_text().split())
-    m = re.search(r"\*\*(\d+) studies, (\d+) result files; (\d+) record command \+ commit \+ checkpoint sha256\.\*\*",
+    m = re.search(r"\*\*(\d+) studies, (\d+) result files; (\d+) records? command \+ commit \+ checkpoint sha256\.\*\*",
                   text)
     assert m, "studies/README.md has no count line '**N studies, M result files; K record command + commit + ...**'"
     truth = (len(SCRIPTS), len(RESULTS), sum(full(p) for p in RESULTS))
