@@ -315,10 +315,10 @@ def grounding_experiment(model, stats, spec, test, seed: int = 0) -> dict:
                 res[name] = ungrounded_report(pos_of(mix(rnn, ref, cols)), start.skeleton, toe_top, lo, hi)
             bad = [r["motion"] for r in res["GAN2"]["ungrounded"]]
             d = (ref - rnn)[bad].double() * torch.as_tensor(stats[1])  # raw units
-            res["R's root-height change on the ungrounded motions (m)"] = {
-                "mean": float(d[..., 3].mean()), "max": float(d[..., 3].max())}
-            rnn_low = lower_toe(pos_of(rnn[bad]), start.skeleton)
-            ref_pos = pos_of(ref[bad])
+            res["R's root-height change on the ungrounded motions (m)"] = {  # none ungrounded: nothing to measure
+                "mean": float(d[..., 3].mean()), "max": float(d[..., 3].max())} if bad else None
+            rnn_low = lower_toe(pos_of(rnn[bad]), start.skeleton) if bad else None
+            ref_pos = pos_of(ref[bad]) if bad else None
             res["at the ungrounded frames"] = [
                 {"motion": int(i), "frame": int(t),
                  "GAN2 lower toe (m)": float(lower_toe(ref_pos[k], start.skeleton)[t]),
