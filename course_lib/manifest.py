@@ -13,6 +13,7 @@ file (the statistics a model was trained with).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -39,26 +40,35 @@ def entry_name(path: Path, manifest_path: Path) -> str:
     return rel.with_suffix("").as_posix()
 
 
-def update_manifest(manifest_path: Path, name: str, entry: dict) -> None:
-    """Read-modify-write MANIFEST.json under an exclusive lock (several helpers may write at once)."""
-    manifest_path.parent.mkdir(parents=True, exist_ok=True)
-    # the lock file lives in the temp dir so that no stray file appears next to the checkpoints
-    key = hashlib.sha256(str(manifest_path.resolve()).encode()).hexdigest()[:16]
-    lock = open(Path(tempfile.gettempdir()) / f"course_lib_manifest_{key}.lock", "w")
-    try:
+@contextlib.contextmanager
+def locked(path: Path, kind: str):
+    """An exclusive lock for a read-modify-write of ``path`` (several processes may write at once).  The lock file
+    lives in the temp dir so that no stray file appears next to the checkpoints or results."""
+    key = hashlib.sha256(str(Path(path).resolve()).encode()).hexdigest()[:16]
+    with open(Path(tempfile.gettempdir()) / f"course_lib_{kind}_{key}.lock", "w") as lock:
         try:
             import fcntl
 
             fcntl.flock(lock, fcntl.LOCK_EX)
         except ImportError:  # Windows: no advisory locks; single-writer use is fine
             pass
+        yield
+
+
+def replace_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename: a reader never sees half a file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def update_manifest(manifest_path: Path, name: str, entry: dict) -> None:
+    """Read-modify-write MANIFEST.json under an exclusive lock: set the entry ``name``."""
+    manifest_path.parent.mkdir(parents=True, exist_ok=True)
+    with locked(manifest_path, "manifest"):
         table = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
         table[name] = entry
-        tmp = manifest_path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(dict(sorted(table.items())), indent=2) + "\n")
-        os.replace(tmp, manifest_path)
-    finally:
-        lock.close()
+        replace_text(manifest_path, json.dumps(dict(sorted(table.items())), indent=2) + "\n")
 
 
 def read_manifest(mpath: Path) -> dict:

@@ -22,20 +22,18 @@ call them).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shlex
 import subprocess
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from course_lib.checksums import sha256_file
-from course_lib.manifest import VERIFIED, entry_name, manifest_path, read_manifest
+from course_lib.manifest import VERIFIED, entry_name, locked, manifest_path, read_manifest, replace_text
 from course_lib.paths import CHECKPOINTS, REPO_ROOT
 
 __all__ = ["checkpoint_metrics", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
@@ -188,26 +186,14 @@ def update_results(name: str, change: Callable[[dict], None],
     Returns what was written."""
     file = results_file(name, checkpoints)
     file.parent.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(str(file.resolve()).encode()).hexdigest()[:16]
-    lock = open(Path(tempfile.gettempdir()) / f"course_lib_results_{key}.lock", "w")
-    try:
-        try:
-            import fcntl
-
-            fcntl.flock(lock, fcntl.LOCK_EX)
-        except ImportError:  # Windows: no advisory locks; single-writer use is fine
-            pass
+    with locked(file, "results"):
         data = read_results(name, checkpoints) if file.exists() else {}
         data = {"command": None, "checkpoints": {}, **data}  # these two first in a new file
         data["command"] = command or data["command"] or _command_of(name)
         change(data)
         data["checkpoints"] = dict(sorted(data["checkpoints"].items()))
         data = json.loads(json.dumps(data))  # plain JSON values (str keys), as a reader will see them
-        tmp = file.with_suffix(".json.tmp")
-        tmp.write_text(_dumps(data) + "\n")
-        os.replace(tmp, file)
-    finally:
-        lock.close()
+        replace_text(file, _dumps(data) + "\n")
     return data
 
 
