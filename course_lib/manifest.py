@@ -22,6 +22,7 @@ from pathlib import Path
 
 from course_lib import __version__
 from course_lib.checksums import is_sha256, read_sidecar, sha256_file, sidecar_path, write_sidecar
+from course_lib.paths import CHECKPOINTS
 
 __all__ = ["entry_name", "expected_sha256", "manifest_path", "read_manifest", "record_file", "update_manifest",
            "verify_file"]
@@ -105,6 +106,12 @@ def expected_sha256(path: Path, mpath: Path) -> tuple[str, str]:
 
 
 VERIFIED: dict[str, str] = {}  # every file verified in this process -> its sha256 (what a study records it used)
+
+
+def checkpoints_manifest(checkpoints: str | os.PathLike | None = None) -> dict:
+    """{name: entry} of the course's checkpoints (default folder: `paths.CHECKPOINTS`): file, sha256, config,
+    command, the environment it was trained on.  What a lesson reads to show a model's provenance."""
+    return read_manifest(Path(checkpoints or CHECKPOINTS) / "MANIFEST.json")
 
 
 def verify_file(path: str | os.PathLike, manifest: str | os.PathLike | None = None) -> Path:
