@@ -38,7 +38,7 @@ from course_lib.paths import CHECKPOINTS, REPO_ROOT
 
 __all__ = ["checkpoint_metrics", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
            "results_file", "results_folder", "results_name", "rounded", "studies_folder", "study_result",
-           "update_results"]
+           "update_results", "write_study_result"]
 
 STUDIES_ENV = "COURSE_STUDIES"  # where studies/ is, for a course_lib installed apart from its repository
 
@@ -95,6 +95,15 @@ def rounded(d, digits: int = 6):
         return [rounded(v, digits) for v in d]
     return round(float(d), digits) if isinstance(d, (float, np.floating)) else d
 
+
+
+def write_study_result(path: str | os.PathLike, result: dict, digits: int = 6, checkpoints=None) -> Path:
+    """A study's result JSON: ``result`` with its `provenance` (command, commit, checkpoints' sha256), floats
+    `rounded` to ``digits``, written to ``path`` with a final newline.  Returns the path."""
+    path = Path(path)
+    record = rounded({**result, **provenance(checkpoints)}, digits)
+    path.write_text(json.dumps(record, indent=1, default=float) + "\n")
+    return path
 
 # ----------------------------------------------------------------------------- the lessons' results files
 

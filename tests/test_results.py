@@ -151,3 +151,14 @@ def test_provenance_records_the_command_the_commit_and_every_verified_file(tmp_p
     (tmp_path / "w.pt").write_bytes(b"weights")
     named = provenance([tmp_path / "w.pt"], argv=["s.py"])["checkpoints_sha256"]
     assert named == {"w.pt": hashlib.sha256(b"weights").hexdigest()}
+
+
+def test_write_study_result_rounds_and_adds_provenance(tmp_path):
+    from course_lib.results import write_study_result
+
+    path = write_study_result(tmp_path / "r.json", {"x": 1.23456789, "n": np.float32(2.5)}, digits=3,
+                              checkpoints=[])
+    text = path.read_text()
+    record = json.loads(text)
+    assert text.endswith("}\n") and record["x"] == 1.235 and record["n"] == 2.5
+    assert set(record) == {"x", "n", "command", "commit", "checkpoints_sha256"} and record["checkpoints_sha256"] == {}

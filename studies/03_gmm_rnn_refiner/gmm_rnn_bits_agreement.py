@@ -11,7 +11,6 @@ foot is high, or off where the pose has the foot in contact.  Writes nothing to 
 """
 
 import argparse
-import json
 
 import numpy as np
 import torch
@@ -19,7 +18,7 @@ import torch
 from course_lib.evaluation.contacts import contact_agreement
 from course_lib.experiments import gmm_rnn as X
 from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 
 def low_feet(motion) -> np.ndarray:
@@ -62,10 +61,7 @@ def main() -> None:
         row["disagreements"] = {f"{k} bits on {k} poses": disagreements(motions[k], bits[k]) for k in ("RNN", "GAN2")}
         out["seeds"][str(seed)] = row
         print(seed, {k: round(v, 3) for k, v in row.items() if isinstance(v, float)}, flush=True)
-    out = {**out, **provenance()}  # the command run (replaces the template above), commit, checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(X.rounded(out), f, indent=1, default=float)
-        f.write("\n")
+    write_study_result(args.out, out)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

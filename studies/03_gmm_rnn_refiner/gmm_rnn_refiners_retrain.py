@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import gmm_rnn as X
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_refiners_retrain.py --bits {bits} --out {out}"
 ROWS = ("RNN", "GAN1", "GAN2", "GAN2 + contacts")
@@ -69,10 +69,7 @@ def main(argv=None) -> None:
     out = {"command": COMMAND.format(bits=args.bits, out=args.out), "bits": args.bits, "retrained": summary(results),
            "retrained_on": trained_on, "shipped": summary(X.recorded_results()),
            "shipped_trained_on": capabilities(X.CHECKPOINTS), "retrained_results": results}
-    out = {**out, **provenance()}  # the command run (replaces COMMAND), the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(X.rounded(out, 5), f, indent=1)
-        f.write("\n")
+    write_study_result(args.out, out, 5)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

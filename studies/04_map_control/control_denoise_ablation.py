@@ -9,7 +9,6 @@ this script keeps so that its recorded numbers reproduce; denoise now starts fro
 """
 
 import argparse
-import json
 
 import numpy as np
 import torch
@@ -17,8 +16,7 @@ import torch
 from course_lib.control import DenoiseConfig, denoise
 from course_lib.datasets import _clip_seed
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 from course_lib.synthetic import add_noise
 
 EARLIER = DenoiseConfig(start_cutoff_hz=None, sigma_angle=0.05, first_frame="input", held_frames="keep")
@@ -43,10 +41,7 @@ def main() -> None:
         out["parts"][name] = mean
         print(name, {k: round(v["mean_joint_error_m"], 4) if isinstance(v, dict) else round(v, 3)
                      for k, v in mean.items()}, flush=True)
-    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(rounded(out), f, indent=1)
-        f.write("\n")
+    write_study_result(args.out, out)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

@@ -13,15 +13,13 @@ Writes nothing to checkpoints/.  The frames/s are the runs' own, on whatever els
 """
 
 import argparse
-import json
 
 import numpy as np
 import torch
 
 from course_lib.control import OnlineConfig
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 
 def main() -> None:
@@ -53,10 +51,7 @@ def main() -> None:
             "turns": len(turns), "turns_within_2s": int((turns <= 2.0 + 1e-6).sum()),
             "median_frames_per_s": float(np.median(fps))}
         print(retry, out["summary"][f"retry {retry}"], flush=True)
-    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(rounded(out), f, indent=1, default=float)
-        f.write("\n")
+    write_study_result(args.out, out)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

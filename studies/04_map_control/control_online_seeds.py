@@ -17,8 +17,7 @@ import json
 import torch
 
 from course_lib.experiments import control as C
-from course_lib.experiments.gmm_rnn import rounded
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 COMMAND = "OMP_NUM_THREADS=1 python studies/04_map_control/control_online_seeds.py --out studies/04_map_control/control_online_seeds_results.json"
 SUMMARY = ("speed_settle_s", "turn_s", "speed_held", "frames_per_s")
@@ -53,10 +52,7 @@ def main(argv=None) -> None:
             r = C.online_run(gait, seed)
             out["seeds"][gait][str(seed)] = {k: r[k] for k in SUMMARY}
         print(gait, json.dumps(out["rerun_seed_0"][gait]), flush=True)
-    out = {**out, **provenance()}  # the command run (replaces COMMAND), the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(rounded(out, 5), f, indent=1)
-        f.write("\n")
+    write_study_result(args.out, out, 5)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

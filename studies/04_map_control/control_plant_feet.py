@@ -8,7 +8,6 @@ contacts) what the contact handling removes, and what does it cost in curve foll
 """
 
 import argparse
-import json
 import time
 
 import numpy as np
@@ -19,7 +18,7 @@ from course_lib.experiments import control as C
 from course_lib.experiments import gmm_rnn as X
 from course_lib.models.contact_cleanup import plant_feet
 from course_lib.representations import decode_state_features, encode_state_features, root_start
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 CASES = (("u_turn", "walk"), ("polyline", "walk"), ("u_turn", "run"), ("line", "walk"))
 
@@ -59,10 +58,7 @@ def main() -> None:
         print(name, gait, {k: {q: round(v[q], 3) for q in ("foot_skate_m_s", "flagged_speed", "unflagged_low_speed",
                                                            "unflagged_low_fraction", "skate_from_unflagged")}
                            for k, v in out["cases"][f"{name}, {gait}"].items() if isinstance(v, dict)}, flush=True)
-        out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
-        with open(args.out, "w") as f:
-            json.dump(X.rounded(out), f, indent=1)
-            f.write("\n")
+        write_study_result(args.out, out)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

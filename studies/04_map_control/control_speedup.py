@@ -28,7 +28,7 @@ from course_lib.control.starts import training_clips
 from course_lib.control.window import WindowEnergy
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 V0, V1, SEG = 1.5, 3.25, 3.0  # the recorded run's 0.6x and 1.3x of the running pace 2.5 m/s, 3 s each
 PROGRAM = [(SEG, 2.5, 0.0), (SEG, V0, 0.0), (SEG, V1, 0.0)]
@@ -147,10 +147,7 @@ def main() -> None:
         print(f"{name:75s} settle {out['conditions'][name]['settle_s']} ({time.perf_counter() - t:.0f} s)",
               flush=True)
     out["seconds"] = time.perf_counter() - t0
-    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(rounded(out), f, indent=1)
-        f.write("\n")
+    write_study_result(args.out, out)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

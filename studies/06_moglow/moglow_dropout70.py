@@ -8,13 +8,12 @@ Writes nothing to checkpoints/.  Question: does seeing more of the history narro
 """
 
 import argparse
-import json
 import time
 
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 
 def main() -> None:
@@ -34,10 +33,7 @@ def main() -> None:
     out["control"]["zero_control_ratio_drop70"] = speeds["moglow_drop70"] / speeds["moglow_nodrop"]
     out["quality"] = E.quality({"moglow_drop70": model}, data, 0)
     out["long"] = E.long_samples({"moglow_drop70": model}, data, 0)
-    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(E.rounded(out, 5), f, indent=1)
-        f.write("\n")
+    write_study_result(args.out, out, 5)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ coupling scales at that frame, and the counterfactual x with z = 0 (the same his
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -31,7 +30,7 @@ import numpy as np
 import torch
 
 from course_lib.experiments import moglow as E
-from course_lib.results import provenance
+from course_lib.results import write_study_result
 
 SEEDS = list(range(10))  # generation seeds; 0 is the notebook's
 N = 16  # samples per seed, as E.long_samples
@@ -233,10 +232,7 @@ def main() -> None:
                                "fixed_gains": fixed_gains(model)}
         print(name, {k: f"{v['exploded']}/{v['n']}" for k, v in counts.items()}, file=sys.stderr)
     out["seconds_taken"] = round(time.perf_counter() - t0, 1)
-    out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
-    with open(args.out, "w") as f:
-        json.dump(E.rounded(out, 5), f, indent=1)
-        f.write("\n")
+    write_study_result(args.out, out, 5)  # + command, commit, checkpoints' sha256
 
 
 if __name__ == "__main__":
