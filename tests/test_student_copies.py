@@ -1,10 +1,11 @@
 """Student copies (tools/student_copies.py, nbgrader): every exercise's check fails on the stub, passes on the solution.
 
-Fast: only each lesson's exercise section runs (from its `exercises-setup` cell to its last check, which
-is built to run on its own), once with the solutions (the release notebook) and once with nbgrader's stubs
-(the student copy).  With the stubs every check must fail *as a check* -- AssertionError, raised because
-a computed value differs -- and nothing else in the section may fail; with the solutions nothing may
-fail.  The whole release notebooks run under nbval (`make nbval`).
+Fast: only each lesson's exercise cells run (its `exercises-setup` cell, then every solution and check
+cell in order: they sit in the sections they practise and are built to run on their own), once with
+the solutions (the release notebook) and once with nbgrader's stubs (the student copy).  With the
+stubs every check must fail *as a check* -- AssertionError, raised because a computed value differs --
+and no other exercise cell may fail; with the solutions nothing may fail.  The whole release notebooks
+run under nbval (`make nbval`).
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ def names(source: str) -> tuple[set[str], set[str]]:
             (stored if isinstance(node.ctx, ast.Store) else loaded).add(node.id)
         elif isinstance(node, (ast.FunctionDef, ast.ClassDef)):
             stored.add(node.name)
+        elif isinstance(node, ast.arg):  # a function's or lambda's parameter is its own name
+            stored.add(node.arg)
     return stored, loaded
 
 
@@ -114,16 +117,16 @@ def test_stubs_fail_every_check_and_solutions_pass(lesson):
 
 
 @pytest.mark.parametrize("lesson", LESSONS)
-def test_cells_after_the_exercises_do_not_read_the_answers(lesson):
-    # in a student copy the answers are stubs and the checks stop at their first failed assertion: a later cell
-    # (key numbers, summaries) that reads a name only an answer or a check defines would fail with a NameError
+def test_lesson_cells_do_not_read_the_answers(lesson):
+    # in a student copy the answers are stubs and a check stops at its first failed assertion: a lesson cell
+    # (any code cell that is not an exercise's) that reads a name only an answer or a check defines would
+    # compute with the stub, or fail with a NameError
     cells = release(lesson).cells
-    last = max(i for i, c in enumerate(cells) if S.is_check(c))
-    answered = set().union(*(names(c.source)[0] for c in cells if S.is_solution(c) or S.is_check(c)))
-    elsewhere = set().union(*(names(c.source)[0] for c in cells[:last + 1]
-                              if c.cell_type == "code" and not (S.is_solution(c) or S.is_check(c))))
-    for c in cells[last + 1:]:
-        if c.cell_type == "code":
-            stored, loaded = names(c.source)
-            reads = (loaded - stored) & (answered - elsewhere)
-            assert not reads, f"{lesson}: a cell after the exercises reads {sorted(reads)}, set only by an exercise"
+    exercise = [c for c in cells if S.is_solution(c) or S.is_check(c)]
+    answered = set().union(*(names(c.source)[0] for c in exercise))
+    lesson_cells = [c for c in cells if c.cell_type == "code" and not (S.is_solution(c) or S.is_check(c))]
+    elsewhere = set().union(*(names(c.source)[0] for c in lesson_cells))
+    for c in lesson_cells:
+        stored, loaded = names(c.source)
+        reads = (loaded - stored) & (answered - elsewhere)
+        assert not reads, f"{lesson}: a lesson cell reads {sorted(reads)}, set only by an exercise"

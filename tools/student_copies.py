@@ -9,8 +9,9 @@ output folder can never be the lessons' folder.
 
 How a lesson marks its exercises (nbgrader's conventions, schema 3, as the "Create Assignment"
 toolbar writes them):
-- one locked cell with ``grade_id: exercises-setup``: everything the exercises need, built from the
-  library alone, so that the exercise section runs by itself after a kernel restart;
+- one locked cell with ``grade_id: exercises-setup`` near the top: everything the exercises need, built
+  from the library alone, so that the exercise cells (spread over the sections they practise) run by
+  themselves after a kernel restart;
 - per exercise, a *solution* cell (``nbgrader.solution: true``) whose answer sits between
   ``### BEGIN SOLUTION`` and ``### END SOLUTION``.  Above the markers the cell sets a placeholder
   of the right type and a wrong value (``kl = torch.zeros(len(mu))``), so a student copy runs and
@@ -61,13 +62,20 @@ def has_exercises(nb) -> bool:
 
 
 def exercise_section(nb) -> list:
-    """The code cells from the `exercises-setup` cell to the last check: what runs on its own."""
+    """The `exercises-setup` cell, then every solution and check cell in order: what runs on its own.
+
+    Exercises sit in the sections they practise, so other cells lie between them; a solution and its
+    check need only the setup cell and the exercise cells before them (tests/test_student_copies.py
+    runs exactly these cells in a fresh kernel)."""
     ids = [nbgrader_meta(c).get("grade_id") for c in nb.cells]
     if SETUP_ID not in ids:
         raise ValueError(f"no cell with nbgrader grade_id {SETUP_ID!r}")
     start = ids.index(SETUP_ID)
-    end = max(i for i, c in enumerate(nb.cells) if is_check(c))
-    return [c for c in nb.cells[start:end + 1] if c.cell_type == "code"]
+    early = [nbgrader_meta(c)["grade_id"] for c in nb.cells[:start] if is_solution(c) or is_check(c)]
+    if early:
+        raise ValueError(f"exercise cells {early} come before the {SETUP_ID!r} cell")
+    return [c for c in nb.cells[start:] if c.cell_type == "code" and (is_solution(c) or is_check(c)
+                                                                      or nbgrader_meta(c).get("grade_id") == SETUP_ID)]
 
 
 def exercises(nb) -> list[tuple[str, str]]:
