@@ -130,6 +130,8 @@ def test_exercise_checks_accept_the_reference_and_reject_mistakes():
     ans.check_kl(ans.kl_closed_form)
     with pytest.raises(AssertionError, match="KL values differ"):
         ans.check_kl(lambda mu, logvar: 0.5 * (mu**2 + logvar.exp() - logvar).sum(-1))  # forgot the -1
+    with pytest.raises(AssertionError, match="did you drop the 1/2"):
+        ans.check_kl(lambda mu, logvar: 2 * ans.kl_closed_form(mu, logvar))
     ans.check_reparameterise(ans.reparameterise)
     with pytest.raises(AssertionError, match="exp\\(logvar / 2\\)"):
         ans.check_reparameterise(lambda mu, logvar, eps: mu + logvar.exp() * eps)  # used the variance
@@ -148,8 +150,11 @@ def test_beta_sweep_reference_kl_falls_with_beta():
     x = _toy_poses(n=512)
     res = ans.beta_sweep(x[:400], x[400:], [0.3, 3.0], steps=150, hidden=32, obs_std=0.3)
     assert res[0]["kl"] > res[1]["kl"] + 0.5
-    ans.check_beta_sweep(ans.beta_sweep(x[:400], x[400:], [0.3, 1.0, 3.0], steps=60, hidden=32, obs_std=0.3),
-                         x[:400], x[400:], steps=60, hidden=32, obs_std=0.3)
+    sweep = ans.beta_sweep(x[:400], x[400:], [0.3, 1.0, 3.0], steps=60, hidden=32, obs_std=0.3)
+    ans.check_beta_sweep(sweep, x[:400], x[400:], steps=60, hidden=32, obs_std=0.3)
+    off = [dict(r, recon=r["recon"] * 1.08) if r["beta"] == 3.0 else r for r in sweep]  # one beta 8 % off
+    with pytest.raises(AssertionError, match="beta=3.0: your recon"):
+        ans.check_beta_sweep(off, x[:400], x[400:], steps=60, hidden=32, obs_std=0.3)
 
 
 def test_iwae_bound_rises_with_k_and_its_check_rejects_mistakes():

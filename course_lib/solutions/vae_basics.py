@@ -108,8 +108,14 @@ def check_kl(fn) -> None:
     mu, logvar, _ = _inputs()
     got, ref = fn(mu, logvar), kl_closed_form(mu, logvar)
     assert got.shape == ref.shape, f"KL should be {tuple(ref.shape)}, one value per row; got {tuple(got.shape)}"
-    assert torch.allclose(got, ref, atol=1e-8), f"KL values differ from the reference: {got} vs {ref}"
-    assert torch.allclose(fn(torch.zeros(2, 3), torch.zeros(2, 3)), torch.zeros(2)), "KL(N(0,I)||N(0,I)) must be 0"
+    if not torch.allclose(got, ref, atol=1e-8):
+        ratio = (got / ref).median().item()
+        hint = ("your KL is 2x the reference: did you drop the 1/2?" if abs(ratio - 2) < 1e-6 else
+                "your KL is minus the reference: D_KL = E_q[log q - log p], not log p - log q" if abs(ratio + 1) < 1e-6
+                else "is sigma^2 exp(logvar), and did you sum over the latent dimensions?")
+        raise AssertionError(f"KL values differ from the reference: {got.tolist()} vs {ref.tolist()}; {hint}")
+    assert torch.allclose(fn(torch.zeros(2, 3), torch.zeros(2, 3)), torch.zeros(2)), \
+        "KL(N(0,I)||N(0,I)) must be 0: check the constant -1 per dimension"
     print(f"check_kl passed: KL = {[round(v, 4) for v in got.tolist()]}")
 
 
@@ -160,21 +166,23 @@ def check_iwae(fn, model: PoseVae, x: torch.Tensor, k: int = 32) -> float:
     return gain
 
 
-def check_beta_sweep(results: list[dict], x_train, x_test, *, steps: int, seed: int = 0, rel_tol: float = 1e-3,
+def check_beta_sweep(results: list[dict], x_train, x_test, *, steps: int, seed: int = 0, rel_tol: float = 0.05,
                      **kwargs) -> None:
     """Exercise 4: results of a beta sweep (list of {'beta', 'kl', 'recon'}, increasing beta).
 
-    The middle beta is re-run with the reference ``beta_sweep`` (kwargs go to it); KL and recon must agree
-    within ``rel_tol`` (an independent implementation with other seeds needs a loose one, e.g. 0.25).
+    Every beta is re-run with the reference ``beta_sweep`` (kwargs go to it); each KL and reconstruction
+    NLL must agree within ``rel_tol`` (5 %: the recipe is given, so only the order of floating-point sums
+    may differ).
     """
     betas = [r["beta"] for r in results]
     assert betas == sorted(betas) and len(betas) >= 3, "sweep at least 3 betas, in increasing order"
     kls = [r["kl"] for r in results]
     assert all(a > b for a, b in zip(kls, kls[1:], strict=False)), f"KL should fall as beta grows, got {kls}"
-    mid = len(results) // 2  # re-run the reference at one beta only (time)
-    ref = beta_sweep(x_train, x_test, [betas[mid]], steps=steps, seed=seed, **kwargs)[0]
-    for key in ("kl", "recon"):
-        assert math.isclose(results[mid][key], ref[key], rel_tol=rel_tol, abs_tol=1.0 if rel_tol > 0.01 else 1e-2), \
-            f"beta={betas[mid]}: your {key} {results[mid][key]:.3f} differs from the reference {ref[key]:.3f}"
+    refs = beta_sweep(x_train, x_test, betas, steps=steps, seed=seed, **kwargs)
+    for mine, ref in zip(results, refs, strict=True):
+        for key in ("kl", "recon"):
+            assert math.isclose(mine[key], ref[key], rel_tol=rel_tol), (
+                f"beta={mine['beta']}: your {key} {mine[key]:.3f} differs from the reference {ref[key]:.3f} by more "
+                f"than {rel_tol:.0%}: same recipe (hidden 64, obs_std 0.1, batch 128, lr 3e-3, seeds 0)?")
     print(f"check_beta_sweep passed: KL falls {kls[0]:.2f} -> {kls[-1]:.2f} nats as beta goes "
-          f"{betas[0]} -> {betas[-1]}")
+          f"{betas[0]} -> {betas[-1]}; every beta within {rel_tol:.0%} of the reference")
