@@ -1,7 +1,8 @@
 # The course's commands.  Everything installs itself: on a fresh machine `make course` and
 # `make test` create .venv, install the pinned packages and generate the data first.
 #
-#   make course      execute every notebook (COURSE_MODE=class unless given), build the site in site/ (Sphinx; offline)
+#   make course      execute every notebook (COURSE_MODE=class unless given), build the site in site/ (Sphinx; offline);
+#                    each lesson's run time goes to results/lesson_times.json (the headers' times use the class-mode ones)
 #   make site        build the site in site/ from the committed notebooks (executed in CI mode), no execution
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
 #   make test-slow   the slow tests (a lone clone, Blender, the site in chromium, every exercise); .ci/run runs both
@@ -32,7 +33,7 @@ HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true
 .PHONY: help setup data course site test test-slow lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
 
 help:
-	@sed -n '4,15p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,16p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)
@@ -69,7 +70,8 @@ course: setup data
 	  start=$$(date +%s); echo "course: $$nb (COURSE_MODE=$(COURSE_MODE))"; \
 	  if env -u MPLBACKEND COURSE_MODE=$(COURSE_MODE) TQDM_DISABLE=1 $(HEADLESS) $(VENV)/bin/jupyter nbconvert \
 	       --to notebook --execute --ExecutePreprocessor.timeout=1800 --output-dir build/executed "$$nb"; then \
-	    echo "course: $$nb done in $$(( $$(date +%s) - start )) s"; \
+	    secs=$$(( $$(date +%s) - start )); echo "course: $$nb done in $$secs s"; \
+	    $(PY) tools/lesson_time.py --record "$$nb" "$$secs" --mode $(COURSE_MODE); \
 	  else failed="$$failed $$nb"; rm -f "build/executed/$$(basename "$$nb")"; fi; \
 	done; \
 	$(PY) tools/build_site.py --notebooks build/executed --site site --work build/site --mode $(COURSE_MODE); \

@@ -32,6 +32,9 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import lesson_graph  # noqa: E402  (tools/lesson_graph.py: the lessons' dependency graph)
+
 CONF_DIR = Path(__file__).resolve().parent / "site"  # conf.py
 
 
@@ -137,7 +140,10 @@ def landing_page(rows: list[dict], mode: str) -> str:
            "foundations (00, 00b, 01). Each lesson page below is the executed notebook "
            f"(`COURSE_MODE={mode}`); the notebooks themselves are in `notebooks/`, the student copies "
            "with the exercises to solve come from `make student`. Search is at the top left; it works offline.",
-           "", "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
+           "", "## The order of the lessons", "",
+           "Each lesson names its prerequisites in its header; an arrow points from a lesson to one that needs it.",
+           "", "![The lessons' dependency graph](lesson_graph.png)", "",
+           "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
     out += [r["name"] for r in rows] + list(study_pages()) + [page.stem for page in extra_pages()] + ["```", ""]
     for r in rows:
         out += [f"## {r['title']}", "", f"{{doc}}`Open the lesson <{r['name']}>` (`{r['name']}.ipynb`)", ""]
@@ -191,6 +197,7 @@ def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
     for name, text in study_pages().items():
         (src / f"{name}.md").write_text(text, encoding="utf-8")
     (src / "index.md").write_text(landing_page(rows, mode), encoding="utf-8")
+    lesson_graph.draw(lesson_graph.graph(notebooks), src / "lesson_graph.png")
     return rows
 
 
