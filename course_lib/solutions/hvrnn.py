@@ -13,8 +13,8 @@ import torch
 from course_lib.models.hvrnn import geodesic, impact_factors, kl_weight
 from course_lib.skeleton import Skeleton
 
-__all__ = ["check_d3", "check_impact_factors", "check_kl_schedule", "check_word_count", "d3", "kl_schedule",
-           "path_lengths", "word_count"]
+__all__ = ["angle_distances", "check_angle_distances", "check_d3", "check_impact_factors", "check_kl_schedule",
+           "check_word_count", "d3", "kl_schedule", "path_lengths", "word_count"]
 
 
 # ----------------------------------------------------------------------------- reference answers
@@ -35,6 +35,13 @@ def path_lengths(skeleton: Skeleton) -> np.ndarray:
 def d3(q: torch.Tensor, q_hat: torch.Tensor) -> torch.Tensor:
     """d3 = min(||q - q~||^2, ||q + q~||^2)  -- eq. (20).  (..., 4) x 2 -> (...)."""
     return torch.minimum((q - q_hat).pow(2).sum(-1), (q + q_hat).pow(2).sum(-1))
+
+
+def angle_distances(theta: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """d2 and d3 (eq. 18, 20) of two unit quaternions whose rotations differ by the angle theta: |q . q~| =
+    cos(theta / 2), so d2 = 1 - cos(theta / 2) and d3 = 2 - 2 cos(theta / 2) = 2 d2 (about theta^2 / 4)."""
+    c = torch.cos(theta / 2)
+    return 1 - c, 2 - 2 * c
 
 
 def kl_schedule(step: int, warmup: int, anneal: int) -> float:
@@ -69,6 +76,33 @@ def check_d3(fn) -> None:
     for other, what in ((p, "random pairs"), (-q, "q and -q (the same rotation)")):
         got, want = fn(q, other), geodesic(q, other, "d3")
         assert torch.allclose(got, want, atol=1e-6), f"d3 differs on {what}: max error {(got - want).abs().max():.3g}"
+
+
+def check_angle_distances(fn) -> None:
+    """fn(theta) -> (d2, d3) as functions of the true angle, compared with the library's geodesic on rotations
+    about a random axis (angles 0..pi)."""
+    from course_lib.rotations import axis_angle_to_quat
+
+    theta = torch.linspace(0.0, np.pi, 37, dtype=torch.float64)
+    axis = torch.nn.functional.normalize(torch.tensor([0.2, -0.9, 0.4], dtype=torch.float64), dim=0)
+    q_hat = axis_angle_to_quat(axis.expand(len(theta), 3), theta)
+    q = torch.tensor([1.0, 0, 0, 0], dtype=torch.float64).expand_as(q_hat)
+    got = fn(theta)
+    assert isinstance(got, tuple) and len(got) == 2, "return a pair (d2, d3), each of theta's shape"
+    for name, g in zip(("d2", "d3"), got):
+        want = geodesic(q, q_hat, name)
+        g = torch.as_tensor(g, dtype=torch.float64)
+        assert g.shape == want.shape, f"{name}: expected shape {tuple(want.shape)}, got {tuple(g.shape)}"
+        if torch.allclose(g, want, atol=1e-6):
+            continue
+        mid = len(theta) // 2  # 90 degrees
+        ratio = float(g[mid] / want[mid]) if abs(float(want[mid])) > 0 else float("nan")
+        hint = ("the dot product of two unit quaternions is the cosine of HALF the angle" if abs(ratio - 1) > 0.05
+                and not np.isnan(ratio) and float(g[mid]) > 0 else "write it with torch.cos(theta / 2)")
+        if abs(ratio - 2) < 0.01 or abs(ratio - 0.5) < 0.01:
+            hint = "||q - q~||^2 = 2 - 2 q.q~ for unit quaternions: check the factor 2"
+        raise AssertionError(f"{name} at 90 degrees: yours {float(g[mid]):.4f}, the library's {float(want[mid]):.4f} "
+                             f"-- {hint}")
 
 
 def check_kl_schedule(fn) -> None:

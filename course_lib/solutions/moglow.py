@@ -15,7 +15,7 @@ import torch
 from course_lib.models.moglow import ActNorm, AffineCoupling, MoGlow, MoGlowConfig
 
 __all__ = ["actnorm_init", "check_actnorm_init", "check_coupling_inverse", "check_log_prob", "check_nats_offset",
-           "coupling_inverse", "log_prob", "nats_offset"]
+           "check_stepping_prediction", "coupling_inverse", "log_prob", "nats_offset", "stepping_at_zero_temperature"]
 
 
 # ----------------------------------------------------------------------------- reference answers
@@ -129,3 +129,35 @@ def check_nats_offset(fn, data=None) -> None:
         got, want = float(fn(std, fx)), _metric_nll_gap(std, fx, mean)
         assert abs(got - want) < 1e-6 * max(1.0, abs(want)), (
             f"got {got:.4f}, want {want:.4f} nats" + (sign if abs(got + want) < 1e-6 * abs(want) else ""))
+
+
+def stepping_at_zero_temperature(n: int = 8, frames: int = 100, seed: int = 1) -> dict:
+    """The pretrained dropout and no-dropout models under zero control at temperature 0 (z_t = 0), from n
+    held-out starts of the CI data -> {"dropout": m/s, "no dropout": m/s}: the feet speed in the root frame over
+    `STEP_LAG` frames (the measure of lesson 06, section 6)."""
+    from course_lib.experiments import moglow as E
+
+    data = E.load_data("ci")
+    out = {}
+    for label, name in (("dropout", "moglow"), ("no dropout", "moglow_nodrop")):
+        poses, ctl = E.generate(E.load_model(name), data, E.constant_control(data, n, E.TAU + frames), seed=seed,
+                                temperature=0.0)
+        out[label] = E.foot_speed(E.local_positions(data, poses[:, E.TAU:], ctl[:, E.TAU:]), E.STEP_LAG)
+    return out
+
+
+def check_stepping_prediction(fn, threshold: float = 0.1) -> None:
+    """fn() -> {"dropout": bool, "no dropout": bool}, a prediction of whether each model's feet speed at T = 0
+    (lag STEP_LAG) is under ``threshold`` m/s, compared with a run of both models."""
+    guess = fn()
+    assert isinstance(guess, dict) and set(guess) == {"dropout", "no dropout"}, \
+        'return a dict {"dropout": True or False, "no dropout": True or False}'
+    for label, g in guess.items():
+        assert isinstance(g, bool), f'make a prediction for "{label}": True (under {threshold} m/s) or False'
+    speeds = stepping_at_zero_temperature()
+    for label, g in guess.items():
+        still = speeds[label] < threshold
+        assert g == still, (f'"{label}": you predicted {"under" if g else "over"} {threshold} m/s, the run gives '
+                            f"{speeds[label]:.3f} m/s at temperature 0 -- "
+                            + ("with no sampling noise, what is left of its feet's motion is real stepping"
+                               if not still else "with no sampling noise, nothing is left to move its feet"))

@@ -33,6 +33,12 @@ VARIANTS = {  # name: (base model, optimiser steps, config overrides, training s
     "nl_1200_seed1": ("hvrnn_nl", 1200, {}, 1),
     "proposed_1200_seed2": ("hvrnn_proposed", 1200, {}, 2),  # a third training seed of each
     "nl_1200_seed2": ("hvrnn_nl", 1200, {}, 2),
+    "nc_1200": ("hvrnn_nc", 1200, {}, 0),  # the same three training seeds for NC and SL: is Proposed > NC,
+    "nc_1200_seed1": ("hvrnn_nc", 1200, {}, 1),  # Proposed > SL or NC > NL more than the seed-to-seed spread?
+    "nc_1200_seed2": ("hvrnn_nc", 1200, {}, 2),
+    "sl_1200": ("hvrnn_sl", 1200, {}, 0),
+    "sl_1200_seed1": ("hvrnn_sl", 1200, {}, 1),
+    "sl_1200_seed2": ("hvrnn_sl", 1200, {}, 2),
 }
 
 
