@@ -1,4 +1,4 @@
-"""Lesson 03 side experiment (issue 14): is GAN2's C2ST against mocap really further from chance than the RNN's,
+"""Lesson 03 side experiment: is GAN2's C2ST against mocap really further from chance than the RNN's,
 and which part of R's change moves it?  And the FID of every row over the same generation seeds.
 
 On the shipped checkpoints (the joint-limited RNN, the refiners of seeds 0-2), for RNN generation seeds 0-4 on the

@@ -1,4 +1,4 @@
-"""Lesson 03 side experiment (issue 14): the RNN's 100 twenty-second motions from one start, sampled without and with
+"""Lesson 03 side experiment: the RNN's 100 twenty-second motions from one start, sampled without and with
 the joint limits (Lesson03Spec.joint_limits: each sampled frame's joint angles clamped to the training data's range,
 stored with the RNN by experiments.gmm_rnn.store_limits).
 
