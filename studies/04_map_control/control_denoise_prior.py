@@ -1,7 +1,7 @@
 """Lesson 04 side experiment (issue 16): is the denoised motion's foot skate in the energy's minimum, or in the search?
 
 Known answers first: a filter given the clean motion should give it back, with the clean motion's skate.  The shipped
-filter (DenoiseConfig()) is run on the 8 scored held-out clips of ``experiments.control.denoise_eval`` with
+filter (DenoiseConfig(), without its planting step unless --plant: the MAP estimate alone) is run on the 8 scored held-out clips of ``experiments.control.denoise_eval`` with
 
 - the clean motion as the input (from the usual 4-Hz low-pass start, and from the clean motion itself);
 - the noisy input (make_noisy's noise, seed 1) from the clean motion as the start;
@@ -33,6 +33,8 @@ from course_lib.results import provenance
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True)
+    parser.add_argument("--plant", action="store_true",
+                        help="plant the toes after the MAP estimate (DenoiseConfig.plant); default: the estimate alone")
     args = parser.parse_args()
     torch.set_num_threads(1)
     clean = C.denoise_clips()
@@ -40,7 +42,7 @@ def main() -> None:
     rows = {"clean motion itself (no filter)": {k: float(np.mean([C._denoise_scores(c, c)[k] for c in clean]))
                                                 for k in C._denoise_scores(clean[0], clean[0])}}
     for prior_on in (True, False):
-        config = DenoiseConfig() if prior_on else DenoiseConfig(weights={"prior": 0.0})
+        config = DenoiseConfig(plant=args.plant) if prior_on else DenoiseConfig(weights={"prior": 0.0}, plant=args.plant)
         tag = "" if prior_on else ", prior off"
         for name, inputs, starts in (("clean input, low-pass start", clean, None),
                                      ("clean input, clean start", clean, clean),
@@ -50,10 +52,10 @@ def main() -> None:
             print(f"{name + tag:40s}", {k: round(v, 4) for k, v in r.items()}, flush=True)
     for tag, weights in ((", contact off", {"contact": 0.0}),
                          (", prior and contact off", {"prior": 0.0, "contact": 0.0})):
-        rows["clean input, clean start" + tag] = r = mean_scores(clean, clean, DenoiseConfig(weights=weights), clean)
+        rows["clean input, clean start" + tag] = r = mean_scores(clean, clean, DenoiseConfig(weights=weights, plant=args.plant), clean)
         print(f"{'clean input, clean start' + tag:40s}", {k: round(v, 4) for k, v in r.items()}, flush=True)
     out = {"command": "python studies/04_map_control/control_denoise_prior.py --out studies/04_map_control/control_denoise_prior_results.json",
-           "clips": len(clean), "rows": rows}
+           "clips": len(clean), "planted": args.plant, "rows": rows}
     out = {**out, **provenance()}  # the command run, the commit, the checkpoints' sha256
     with open(args.out, "w") as f:
         json.dump(rounded(out), f, indent=1)
