@@ -13,6 +13,9 @@ its stick strip, speed, heading rate, gait and stance (`stance_bars`, from `cont
 
 Taught in notebooks/00b_synthetic_data.ipynb (knob sweep 3, the heading rate; the random control
 program); used by the top views of lessons 02 and 03.
+
+The benchmark's figures (lesson 07): `benchmark_panels` and `benchmark_quality_speed` draw every model in one
+colour of its own (`MODEL_COLOURS`) in every figure; C2ST's panel marks its target, 0.5 (chance).
 """
 
 from __future__ import annotations
@@ -99,5 +102,104 @@ def control_timeline(clip, gaits, derived=None, n_panels: int = 9, title: str | 
     ax[3].tick_params(axis="y", labelsize=7)
     stance_bars(ax[4], [clip.meta["contacts"]] + ([derived] if derived is not None else []), fps)
     ax[4].set_xlabel("time (s)")
+    fig.tight_layout()
+    return fig
+
+
+# ----------------------------------------------------------------------------- lesson 07: the benchmark's figures
+
+# one colour per benchmark row, the same in every figure (matplotlib's tab10, then two greys for the extra rows)
+MODEL_COLOURS = {
+    "Mocap": "black", "ERD": "tab:brown", "LSTM-3LR": "tab:pink", "cRBM (CD-15)": "tab:olive",
+    "VAE-LSTM": "tab:blue", "GMM-RNN": "tab:orange", "GMM-RNN + refiner (GAN2 + contacts)": "tab:red",
+    "GMM-RNN, online control": "tab:purple", "HVRNN (Proposed)": "tab:green", "QuaterNet-style GRU": "tab:gray",
+    "MoGlow": "tab:cyan",
+}
+SHORT_NAMES = {"cRBM (CD-15)": "cRBM", "GMM-RNN + refiner (GAN2 + contacts)": "GMM+GAN2",
+               "GMM-RNN, online control": "GMM online", "HVRNN (Proposed)": "HVRNN", "QuaterNet-style GRU": "QuaterNet"}
+_LOG_SCALE = ("foot_skate", "jitter", "fid", "bone_length", "penetration", "apd", "fps", "params", "train_seconds")
+_TARGETS = {"c2st": (0.5, "target 0.5 (chance): the sets cannot be told apart")}  # a fixed target, not the Mocap row
+
+
+def model_colour(name: str, k: int = 0) -> str:
+    """The benchmark row's colour (MODEL_COLOURS); a row not listed gets a colour of its own from tab20 by ``k``."""
+    import matplotlib.pyplot as plt
+
+    return MODEL_COLOURS.get(name, plt.cm.tab20(k % 20))
+
+
+def _goal(key: str, better: str) -> str:
+    if key in _TARGETS:
+        return _TARGETS[key][1]
+    return {"low": "lower is better", "high": "higher is better", "ref": "target: the Mocap row (dashed)"}[better]
+
+
+def benchmark_panels(results: dict, measures=None, cols: int = 4, width: float = 16.0):
+    """Lesson 07's results as one panel per measure: a bar per row in its MODEL_COLOURS colour (mean over the
+    seeds, their sd as an error bar), the Mocap row's value dashed, a fixed target (C2ST: 0.5) dotted, "n/a" for
+    a blank.  results: `course_lib.benchmark.run`'s dict (its "measures": key -> (label, unit, better)).
+    -> the matplotlib Figure."""
+    import matplotlib.pyplot as plt
+
+    info = results["measures"]
+    measures = list(measures or info)
+    names = list(results["rows"])
+    rows_n = -(-len(measures) // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(width, 3.9 * rows_n), squeeze=False)
+    for ax, key in zip(axes.flat, measures, strict=False):
+        label, unit, better = info[key]
+        log = key in _LOG_SCALE
+        for i, name in enumerate(names):
+            row = results["rows"][name]
+            m = row["mean"].get(key)
+            if m is not None and not (log and m <= 0):
+                ax.bar(i, m, yerr=row["sd"].get(key, 0.0), color=model_colour(name, i), capsize=3)
+            else:  # a blank, or a 0 that a log axis cannot draw
+                ax.text(i, 0.03, "n/a" if m is None else "0", ha="center", va="bottom", fontsize=10,
+                        transform=ax.get_xaxis_transform(), color="0.3")
+        if key in _TARGETS:
+            ax.axhline(_TARGETS[key][0], color="k", ls=":", lw=1.5)
+        else:
+            mocap = results["rows"].get("Mocap", {}).get("mean", {}).get(key)
+            if mocap is not None and not (log and mocap <= 0):
+                ax.axhline(mocap, color="k", ls="--", lw=1)
+        if log:
+            ax.set_yscale("log")
+        ax.set_title(f"{label}" + (f" ({unit})" if unit else "") + f"\n{_goal(key, better)}", fontsize=11)
+        ax.set_xticks(range(len(names)), [SHORT_NAMES.get(n, n) for n in names], rotation=60, ha="right",
+                      fontsize=10)
+    for ax in list(axes.flat)[len(measures):]:
+        ax.axis("off")
+    fig.tight_layout()
+    return fig
+
+
+def benchmark_quality_speed(results: dict, qualities=("fid", "foot_skate"), size=(16.0, 6.0), real_time: float = 30.0):
+    """Each quality (log) against generation speed (frames per second on one core, log), one panel each: a point
+    per row in its MODEL_COLOURS colour with the seeds' sd as error bars, the Mocap row dashed, real time
+    (``real_time`` frames/s) dotted.  -> the matplotlib Figure."""
+    import matplotlib.pyplot as plt
+
+    info = results["measures"]
+    fig, axes = plt.subplots(1, len(qualities), figsize=size, squeeze=False)
+    for ax, quality in zip(axes[0], qualities, strict=True):
+        for i, (name, row) in enumerate(results["rows"].items()):
+            m = row["mean"]
+            if quality in m and "fps" in m:
+                ax.errorbar(m["fps"], m[quality], xerr=row["sd"].get("fps"), yerr=row["sd"].get(quality), fmt="o",
+                            ms=8, capsize=3, color=model_colour(name, i))
+                ax.annotate(SHORT_NAMES.get(name, name), (m["fps"], m[quality]), textcoords="offset points",
+                            xytext=(6, 4), fontsize=10, color=model_colour(name, i))
+        mocap = results["rows"].get("Mocap", {}).get("mean", {}).get(quality)
+        if mocap:
+            ax.axhline(mocap, color="k", ls="--", lw=1, label=f"Mocap (half vs half): {mocap:.3g}")
+        ax.axvline(real_time, color="0.5", ls=":", lw=1, label=f"real time ({real_time:g} frames/s)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        label, unit, _ = info[quality]
+        ax.set_xlabel(f"generation speed, {real_time:g}-fps frames per second on one core")
+        ax.set_ylabel(label + (f" ({unit})" if unit else ""))
+        ax.legend(loc="lower left", fontsize=10)
+        ax.set_title(f"{label} against speed: lower right is better")
     fig.tight_layout()
     return fig

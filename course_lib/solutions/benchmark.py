@@ -12,7 +12,8 @@ from course_lib import benchmark as B
 from course_lib.motion import CONTACT_HEIGHT
 from course_lib.skeleton import Skeleton
 
-__all__ = ["HeldPose", "check_flight_fraction", "check_flight_table", "check_held_pose", "check_which_measures",
+__all__ = ["HeldPose", "apd_per_start", "apd_samples", "check_apd_per_start", "check_flight_fraction",
+           "check_flight_table", "check_held_pose", "check_which_measures", "check_which_measures_prediction",
            "flight_fraction", "flight_table", "which_measures"]
 
 TOES = ("LeftToeBase", "RightToeBase")
@@ -53,6 +54,23 @@ class HeldPose:
 
     def long(self, p: B.Protocol, idx, seed: int) -> np.ndarray:
         return self._run(p, idx, len(B.long_times(p)))
+
+
+def apd_samples(row, proto: B.Protocol, seed: int = 0) -> tuple[np.ndarray, int]:
+    """The raw samples of the benchmark's APD test for one generation seed, as `B.evaluate_seed` draws them:
+    ``apd_samples`` draws from each of the first ``apd_starts`` starts of half B, generation seed + 100.
+    -> (positions (starts * S, T, 21, 3), each start's S draws one after another; S)."""
+    _, b = B.halves(len(proto.clips), seed)
+    starts, samples = proto.spec.apd_starts, proto.spec.apd_samples
+    return row.generate(proto, np.repeat(b[:starts], samples), seed + 100).positions, samples
+
+
+def apd_per_start(raw: np.ndarray, samples: int) -> np.ndarray:
+    """raw (starts * S, T, J, 3), each start's S samples one after another -> (starts,) APD of each start, m:
+    1/(S(S-1)) sum_{i != j} mean_{t,k} ||x_i[t,k] - x_j[t,k]||."""
+    x = raw.reshape(-1, samples, *raw.shape[1:])  # (starts, S, T, J, 3)
+    d = np.linalg.norm(x[:, :, None] - x[:, None, :], axis=-1).mean(axis=(3, 4))  # (starts, S, S)
+    return d.sum(axis=(1, 2)) / (samples * (samples - 1))
 
 
 def which_measures(result: dict, mocap: dict, factor: float = 2.0) -> set:
@@ -120,3 +138,52 @@ def check_held_pose(cls, proto: B.Protocol) -> None:
 def check_which_measures(found: set, result: dict, mocap: dict) -> None:
     want = which_measures(result, mocap)
     assert set(found) == want, f"expected {sorted(want)}, got {sorted(found)}"
+
+
+def check_apd_per_start(fn, row, proto: B.Protocol, seed: int = 0) -> None:
+    """fn(raw (starts * S, T, 21, 3), S) -> (starts,) APD per start: on known answers, then on the row's raw samples,
+    whose mean must be the benchmark's APD of that row and seed."""
+    T = 6
+    base = np.random.default_rng(0).normal(size=(1, T, 21, 3))
+    copies = np.repeat(base, 3, 0)  # one start, 3 identical samples
+    got = np.asarray(fn(copies, 3), float)
+    assert got.shape == (1,), f"one start of 3 samples: expected an array of 1 value, got shape {got.shape}"
+    assert abs(got[0]) < 1e-12, f"3 identical samples: expected APD 0, got {got[0]}"
+    two = np.concatenate([base, base + [1.0, 0.0, 0.0], base, base + [0.0, 0.0, 2.0]])  # 2 starts of 2 samples
+    got = np.asarray(fn(two, 2), float)
+    assert got.shape == (2,), f"2 starts of 2 samples: expected 2 values, got shape {got.shape}"
+    assert np.allclose(got, [1.0, 2.0]), (f"samples 1 m and 2 m apart at every joint: expected [1, 2], got {got}"
+                                          + (" (average over ordered pairs i != j: divide by S(S-1))"
+                                             if np.allclose(got, [0.5, 1.0]) else "")
+                                          + (" (samples are grouped per start: reshape to (starts, S, ...))"
+                                             if np.allclose(got, [1.0, 1.0]) or np.allclose(got, [1.5, 1.5]) else ""))
+    raw, samples = apd_samples(row, proto, seed)
+    mine = np.asarray(fn(raw, samples), float)
+    want = apd_per_start(raw, samples)
+    assert mine.shape == want.shape and np.allclose(mine, want, rtol=1e-9), \
+        f"{row.name}'s raw samples: per start expected {np.round(want, 4)}, got {np.round(mine, 4)}"
+    _, b = B.halves(len(proto.clips), seed)
+    bench = B.apd_of(row, proto, b[:proto.spec.apd_starts], samples, seed + 100)
+    assert abs(mine.mean() - bench) < 1e-9, \
+        f"the mean over starts {mine.mean():.5f} differs from the benchmark's {bench:.5f}"
+    print(f"{row.name}, seed {seed}: APD per start {np.round(mine, 3)} m; their mean {mine.mean():.4f} m "
+          f"= the benchmark's {bench:.4f} m")
+
+
+def check_which_measures_prediction(predicted, proto: B.Protocol, reference: list, floor: float) -> None:
+    """predicted: the set of measures on which the held pose scores above twice the Mocap row, written before the
+    run; the check runs both rows through `B.evaluate_seed` (seed 0) and compares."""
+    keys = ("foot_skate", "penetration", "bone_length", "fid", "c2st", "frozen")
+    assert isinstance(predicted, (set, frozenset, list, tuple)), f"give a set of measure names, got {predicted!r}"
+    unknown = set(predicted) - set(keys)
+    assert not unknown, f"{sorted(unknown)} are not among the measures asked about: {keys}"
+    held = B.evaluate_seed(HeldPose(), proto, 0, reference, floor)
+    mocap = B.evaluate_seed(B.Mocap(), proto, 0, reference, floor)
+    print(f"{'measure':12s} {'held pose':>10s} {'mocap':>10s}")
+    for k in keys:
+        print(f"{k:12s} {held[k]:10.4g} {mocap[k]:10.4g}")
+    want = which_measures(held, mocap)
+    missed, extra = sorted(want - set(predicted)), sorted(set(predicted) - want)
+    assert not missed and not extra, (f"the run says {sorted(want)}; you predicted {sorted(predicted)}"
+                                      + (f": {missed} see the statue" if missed else "")
+                                      + (f"; {extra} do not" if extra else ""))
