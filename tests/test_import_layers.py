@@ -46,11 +46,12 @@ LAYERS = (
     # 7  one module per lesson
     ("experiments", "experiments.control", "experiments.gmm_rnn", "experiments.gmm_rnn_jitter", "experiments.hvrnn",
      "experiments.moglow", "experiments.vae_basics", "experiments.vae_lstm"),
-    # 8  one protocol for all models; timings
-    ("benchmark", "timings"),
+    # 8  one protocol for all models; timings; the ONNX export of a trained model
+    ("benchmark", "timings", "export"),
     # 9  the reproduction CLI; the exercises' answers
     ("reproduce", "solutions", "solutions.benchmark", "solutions.control", "solutions.data_lesson",
-     "solutions.gmm_rnn", "solutions.hvrnn", "solutions.moglow", "solutions.vae_basics"),
+     "solutions.gmm_rnn", "solutions.hvrnn", "solutions.measures", "solutions.moglow", "solutions.vae_basics",
+     "solutions.vae_lstm"),
 )
 
 # module -> what it imports by name at run time; each points down.  The evaluation package imports its classifier

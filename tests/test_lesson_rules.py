@@ -256,3 +256,21 @@ def test_header_parsing_on_known_headers():
     assert prerequisites(nb) == ["00b", "01"] and LT.header_minutes(nb) == 150
     assert LT.header_minutes(_nb(_md("**Time:** about 45 minutes"))) == 45
     assert prerequisites(_nb(_md("# no header"))) is None
+
+
+def test_readme_lists_each_lessons_prerequisites_and_time_as_the_headers_say():
+    # README's lesson table: | # | lesson | needs | paper | run time | status |, one row per lesson
+    rows = {}
+    for line in (REPO / "README.md").read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 5 and re.fullmatch(r"\d\d[a-z]?", cells[0]):
+            rows[cells[0]] = cells
+    for path in NOTEBOOKS:
+        lesson = lesson_id(path)
+        assert lesson in rows, f"README.md has no row for lesson {lesson}"
+        needs = LESSON_REF.findall(rows[lesson][2])
+        assert needs == prerequisites(load(path)), \
+            f"README.md says lesson {lesson} needs {needs}; its header says {prerequisites(load(path))}"
+        run = LT.recorded_seconds(path.stem)
+        assert run is not None and rows[lesson][4] == f"{run:.0f} s", \
+            f"README.md's run time for {lesson} is {rows[lesson][4]!r}; results/lesson_times.json says {run}"

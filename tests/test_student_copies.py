@@ -24,8 +24,7 @@ sys.path.insert(0, str(REPO / "tools"))
 import student_copies as S  # noqa: E402
 
 # lessons whose exercises are autograded (every lesson)
-LESSONS = ["00_skeletons_and_rotations", "00b_synthetic_data", "01_vae_basics", "02_vae_lstm", "03_gmm_rnn_refiner",
-           "04_map_control", "05_hierarchical_vrnn", "06_moglow", "07_benchmark"]
+LESSONS = sorted(p.stem for p in (REPO / "notebooks").glob("[0-9]*.ipynb"))
 MIN_EXERCISES = 4
 
 

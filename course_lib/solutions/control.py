@@ -6,8 +6,8 @@ the library (course_lib.control), raising an AssertionError that says what is wr
 
 from __future__ import annotations
 
-import importlib
 import math
+import sys
 from contextlib import contextmanager
 from types import SimpleNamespace
 
@@ -26,9 +26,9 @@ from course_lib.control.rollout import draw_noise, rollout
 from course_lib.control.window import WindowEnergy
 from course_lib.motion import CONTACT_HEIGHT
 
-# the modules themselves (course_lib.control's names pso, ... are its functions)
+# the modules themselves: course_lib.control's names pso, design, ... are its functions, so read sys.modules
 lib_design, lib_energy_module, lib_lbfgs, lib_pso, lib_window = (
-    importlib.import_module(f"course_lib.control.{m}") for m in ("design", "energy", "lbfgs", "pso", "window"))
+    sys.modules[f"course_lib.control.{m}"] for m in ("design", "energy", "lbfgs", "pso", "window"))
 
 __all__ = ["check_contact_energy", "check_direction_energy", "check_sigma_fit2", "check_window", "contact_energy",
            "direction_energy", "sigma_fit2_for", "solve_window", "window_energy", "window_problem"]
@@ -209,7 +209,8 @@ def check_contact_energy(fn) -> None:
     mine = torch.as_tensor(fn(toes, bits, prev, 0.024, 0.03, 0.03), dtype=torch.float64)
     if mine.shape == ref.shape:
         no_prev = lib_contact_energy(toes, bits, toes[:, 0], 0.024, 0.03, 0.03)
-        assert not torch.allclose(mine, no_prev), "the first frame's step is from prev_toes, the frame before the window"
+        assert not torch.allclose(mine, no_prev), \
+            "the first frame's step is from prev_toes, the frame before the window"
         if torch.allclose(mine, (bits * (toes[..., 1] - 0.024) ** 2 / 0.03 ** 2).sum((1, 2))):
             raise AssertionError("only the plane term: a foot in contact also pays for moving since the frame before")
     _close(mine, ref, "contact energy", tol=1e-6)
@@ -240,7 +241,7 @@ def _written_out():
     try:
         yield
     finally:
-        for (o, n), f in zip(saved, old):
+        for (o, n), f in zip(saved, old, strict=True):
             setattr(o, n, f)
 
 
@@ -264,7 +265,8 @@ def check_window(my_energy, my_solve, seed: int = 0) -> dict:
     for k, hint in hints.items():
         assert k in mine, f"your energy returns no '{k}' term"
         m = torch.as_tensor(mine[k], dtype=torch.float64)
-        assert m.shape == ref[k].shape, f"{k}: expected shape {tuple(ref[k].shape)} (one per candidate), got {tuple(m.shape)}"
+        assert m.shape == ref[k].shape, \
+            f"{k}: expected shape {tuple(ref[k].shape)} (one per candidate), got {tuple(m.shape)}"
         diff[k] = float((m - ref[k]).abs().max())
         assert diff[k] <= 1e-9 * (1 + float(ref[k].abs().max())), f"the {k} term differs by up to {diff[k]:.3g}: {hint}"
     lib = lib_design._solve_window(W.library, None, W.config, torch.Generator().manual_seed(seed))
@@ -273,13 +275,13 @@ def check_window(my_energy, my_solve, seed: int = 0) -> dict:
     n = len(lib[2]["pso"])
     assert len(out["pso"]) == n, (f"{len(out['pso'])} PSO losses, the library has {n}: the start's best, then one per "
                                   f"iteration ({W.pso.iterations} iterations)")
-    diff["pso"] = max(abs(a - b) for a, b in zip(out["pso"], lib[2]["pso"]))
+    diff["pso"] = max(abs(a - b) for a, b in zip(out["pso"], lib[2]["pso"], strict=True))
     assert diff["pso"] <= 1e-6 * (1 + abs(lib[2]["pso"][0])), (
         f"your swarm's best losses {[round(v, 2) for v in out['pso']]} differ from the library's "
         f"{[round(v, 2) for v in lib[2]['pso']]}: draw r1 then r2 per iteration, same shapes, same generator")
     assert len(out["lbfgs"]) == len(lib[2]["lbfgs"]), (f"{len(out['lbfgs'])} L-BFGS evaluations, the library makes "
                                                        f"{len(lib[2]['lbfgs'])}: torch.optim.LBFGS settings?")
-    diff["lbfgs"] = max(abs(a - b) for a, b in zip(out["lbfgs"], lib[2]["lbfgs"]))
+    diff["lbfgs"] = max(abs(a - b) for a, b in zip(out["lbfgs"], lib[2]["lbfgs"], strict=True))
     frames = torch.as_tensor(out["frames"], dtype=torch.float64)
     assert frames.shape == lib[0].shape, f"frames: expected shape {tuple(lib[0].shape)}, got {tuple(frames.shape)}"
     diff["frames"] = float((frames - lib[0]).abs().max())
