@@ -1,5 +1,5 @@
 """Lesson-03 experiment plumbing (course_lib/experiments/gmm_rnn.py) on a few small clips: windows,
-continuations, the Fig. 12 stand-in rows (GAN2 + contacts), the long-generation checks and the recipe sweep."""
+continuations, the Fig. 12 stand-in rows (GAN2 + contacts), and the long-generation checks."""
 
 import numpy as np
 import pytest
@@ -81,22 +81,6 @@ def test_train_rnn_runs_teacher_forcing_then_self_fed_stages(setup):
     assert all(np.isfinite(hist.step["loss"] + ft.step["loss"]))
 
 
-def test_recipe_sweep_runs_one_variant_end_to_end(setup):
-    """study gmm_rnn_sweep (the search behind the shipped recipe): one variant, a few steps, every number."""
-    sweep = load_study("gmm_rnn_sweep")
-    clips, ds, *_ = setup
-    threads = torch.get_num_threads()
-    try:
-        name, res, state = sweep.run_variant(("pose_abs", "cpu", (clips[:6], clips[6:], ds), True))
-    finally:
-        torch.set_num_threads(threads)  # run_variant pins its worker process to one thread
-    assert name == "pose_abs" and "out.weight" in state
-    assert set(res) >= {"train_seconds", "final_nll", "bias1", "bias2"}
-    for b in ("bias1", "bias2"):
-        assert set(res[b]["raw"]) == {"foot_skate", "jitter", "fid", "contact_agreement"}
-        assert res[b]["long"]["nan_motions"] == 0 and 0 <= res[b]["long"]["grounded_motions"] <= 4
-
-
 def test_pool_and_gan_carry_each_clips_skeleton(setup):
     """The refiners' kinematics use the subject of each motion: the pool remembers each start clip's offsets,
     GAN2's D sees the contact bits, GAN1's does not."""
@@ -148,34 +132,6 @@ def test_skate_study_measures_one_model(setup):
         assert np.isfinite(res[k]) and res[k] >= 0, k
     assert res["long"]["nan_motions"] == 0 and 0 <= res["long"]["in_range_motions"] <= 4
     assert set(study.VARIANTS) >= {"before", "anchored", "anchored_noise01", "noise01_angles_03"}
-
-
-def test_open_causes_tool_known_answers(setup):
-    """study gmm_rnn_open_causes's measures on inputs whose answers are known: the straight-through bits get a
-    gradient exactly where the raw bit is in [0, 1]; the clamp mixture; the FID's mean term; the per-frame
-    grounding report; the contact tests split as motion.foot_contacts combines them."""
-    tool = load_study("gmm_rnn_open_causes")
-    clips, ds, *_ = setup
-    r = Refiner(RefinerConfig.cpu(fc_width=8, lstm_width=8, contacts=True, discriminator_contacts=True)).eval()
-    x = torch.zeros(1, 4, 68)
-    x[0, :, 66] = torch.tensor([-0.5, 0.0, 0.3, 1.0])  # raw = normalised (stats None): in [0, 1] for 3 of 4
-    x[0, :, 67] = torch.tensor([1.5, 0.7, -2.0, 2.0])  # 1 of 4
-    assert tool.bit_gradient_fraction(r, x, X.clip_offsets(clips[:1])) == pytest.approx(4 / 8)
-    a, b = torch.zeros(2, 3, 68), torch.ones(2, 3, 68)
-    m = tool.mix(a, b, [3, 5])
-    assert m[..., [3, 5]].eq(1).all() and m.sum() == 2 * 3 * 2 and a.sum() == 0
-    f = np.random.default_rng(0).normal(size=(50, 4))
-    t = tool.fid_terms(f, f + np.array([1.0, 2.0, 0.0, 0.0]))
-    assert t["mean_term"] == pytest.approx(5.0) and abs(t["covariance_term"]) < 1e-6
-    sk = clips[0].skeleton
-    pos = np.zeros((2, 5, sk.num_joints, 3))
-    pos[..., 0, 1] = 0.9  # root height
-    pos[1, 3, [sk.index("LeftToeBase"), sk.index("RightToeBase")], 1] = 0.5  # both toes 0.5 m up on one frame
-    rep = tool.ungrounded_report(pos, sk, toe_top=0.3, lo=0.8, hi=1.0)
-    assert rep["grounded_motions"] == 1 and rep["in_range_motions"] == 2
-    assert [(u["motion"], u["frames"]) for u in rep["ungrounded"]] == [(1, [3])]
-    low, slow = tool.foot_low_slow(clips[:2], 30.0)
-    assert np.array_equal(slow, np.stack([c.contacts() for c in clips[:2]])) and (low >= slow).all()
 
 
 def test_training_limits_bound_the_training_angles_only(setup):

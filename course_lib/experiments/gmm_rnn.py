@@ -52,7 +52,7 @@ class Lesson03Spec:
     rnn_steps: int = 6000  # teacher forcing on 50-frame windows, batch 20 (sec. 4.1.3); ~14 epochs
     # then fine-tuning stages (true frames, own predictions, steps): inputs alternate true frames and the
     # model's own predictions (not in the paper; see gmm_rnn.py "differs")
-    finetune: tuple = ()  # e.g. ((10, 10, 1000),); with absolute root means it hurt (study gmm_rnn_sweep)
+    finetune: tuple = ()  # e.g. ((10, 10, 1000),)
     finetune_lr: float = 5e-4
     sample_bias: float = 2.0  # Graves' sampling bias at generation (0 = the paper's sampling)
     sample_angle_noise: float = 0.3  # scale of the per-dimension draw in the joint angles (0: component means)
@@ -80,8 +80,7 @@ class Lesson03Spec:
     max_r_updates: int = 40  # cap on R's adaptive update count per round (the paper has none)
     # the balance rule of sec. 4.2.2 on D's mean cross-entropy (chance ln 2): r doubles below d_loss_low (D too
     # strong) and halves above d_loss_high (D near chance), on the mean of the last schedule_smooth rounds; the
-    # paper's 0.01 / 1 on single batches almost never fire on this scale, and with 0.1 / ln 2 D's loss stayed
-    # inside the band in half of the runs (0.5-0.7), so r never moved there (study gmm_rnn_refiner_recipes)
+    # paper's 0.01 / 1 on single batches almost never fire on this scale
     d_loss_low: float = 0.3
     d_loss_high: float = 0.6
     schedule_smooth: int = 5

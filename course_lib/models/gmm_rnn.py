@@ -45,17 +45,14 @@ Differs from the paper:
   lower toe's height), so a planted foot stays planted whatever pose is predicted.
 - ``limits`` at sampling (not in the paper): each sampled frame's columns clamped to a given [low, high], a joint
   limit such as a rig has; `set_limits` stores them with the weights (lesson 03: the joint angles' range in the
-  training data, experiments.gmm_rnn.training_limits).  Without them the residual angles' errors add up over 20 s
-  until the pose folds (study gmm_rnn_long_range).
+  training data, experiments.gmm_rnn.training_limits).  Without them the residual angles' errors can add up
+  over long generations until the pose folds.
 - ``noise_scale`` at sampling (not in the paper) scales each column's draw around the chosen component's
   mean; lesson 03 draws the joint angles at 0.3 of it (see study gmm_rnn_skate).
 - ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i, except for the
   columns in ``absolute_dims``.  Lesson 03 ships residual joint angles and dyaw and absolute slip, toe
   height, pitch and roll on the feet-anchored features (study gmm_rnn_skate: absolute angles predicted
-  each frame afresh, and their one-step errors made the feet skate).  On the plain state features
-  (study gmm_rnn_sweep, 100 motions of 20 s from one start, b = 2): every mean residual let the root
-  height random-walk; residual velocities and joint angles kept the height but the legs folded up after
-  ~10 s; every mean absolute (the paper) stayed grounded but the 100 motions were nearly the same.
+  each frame afresh, and their one-step errors made the feet skate).
 """
 
 from __future__ import annotations
