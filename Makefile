@@ -3,7 +3,8 @@
 #
 #   make course      execute every notebook (COURSE_MODE=class unless given), build the site in site/ (Sphinx; offline);
 #                    each lesson's run time goes to results/lesson_times.json (the headers' times use the class-mode ones)
-#   make site        build the site in site/ from the committed notebooks (executed in CI mode), no execution
+#   make site        build the site in site/ from the committed notebooks (executed in CI mode), no execution;
+#                    both also build the browser demo in site/demo/ (make demo: web/, npm packages pinned)
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
 #   make test-slow   the slow tests (a lone clone, Blender, the site in chromium, every exercise); .ci/run runs both
 #   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
@@ -30,10 +31,10 @@ DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 # the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
 HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
-.PHONY: help setup data course site test test-slow lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
+.PHONY: help setup data course site demo test test-slow lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
 
 help:
-	@sed -n '4,16p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,17p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)
@@ -75,10 +76,23 @@ course: setup data
 	  else failed="$$failed $$nb"; rm -f "build/executed/$$(basename "$$nb")"; fi; \
 	done; \
 	$(PY) tools/build_site.py --notebooks build/executed --site site --work build/site --mode $(COURSE_MODE); \
+	$(MAKE) --no-print-directory demo; \
 	if [ -n "$$failed" ]; then echo "course: FAILED (not in the site):$$failed" >&2; exit 1; fi
 
 site: setup
 	$(PY) tools/build_site.py --notebooks notebooks --site site --work build/site --mode ci
+	@$(MAKE) --no-print-directory demo
+
+# The browser demo (web/, lesson 06): the pretrained MoGlow step as ONNX, bundled with onnxruntime-web and
+# three.js into plain files in site/demo/ (opens from file:// and over a local server; nothing fetched).
+demo: setup web/node_modules/.stamp
+	$(PY) -m course_lib.export build/web-assets --force
+	cd web && node build.mjs --assets ../build/web-assets --out ../site/demo
+	@echo "demo: site/demo/index.html (add ?selftest=1 for the self-test)"
+
+web/node_modules/.stamp: web/package.json web/package-lock.json
+	cd web && npm ci --no-audit --no-fund --loglevel=error
+	@touch $@
 
 # ---- tests -------------------------------------------------------------------------------------
 test: lint unit nbval
@@ -92,7 +106,7 @@ unit: setup
 	COURSE_MODE=ci OMP_NUM_THREADS=1 MPLBACKEND=Agg $(HEADLESS) $(PY) -m pytest -n 2 -m "not slow" tests; \
 	echo "unit: tests took $$(( $$(date +%s) - start )) s"
 
-test-slow: setup
+test-slow: setup web/node_modules/.stamp
 	@start=$$(date +%s); \
 	COURSE_MODE=ci OMP_NUM_THREADS=1 MPLBACKEND=Agg $(HEADLESS) $(PY) -m pytest -n 2 -m slow tests; \
 	echo "test-slow: tests took $$(( $$(date +%s) - start )) s"
@@ -127,7 +141,7 @@ clean:
 	find notebooks -name .ipynb_checkpoints -type d -prune -exec rm -rf {} +
 
 distclean: clean
-	rm -rf $(VENV) data *.egg-info
+	rm -rf $(VENV) data *.egg-info web/node_modules
 
 delete-student-answers:
 	@echo "delete-student-answers: removing student/ and every answer in it"

@@ -28,6 +28,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from course_lib.outputs import check_outputs
+
 __all__ = ["SELFTEST_PHASES", "SamplingStep", "control_sequence", "export_step", "parity", "rollout_onnx",
            "rollout_torch", "start_window", "write_demo_files"]
 
@@ -78,11 +80,12 @@ def _example(model, batch: int) -> tuple[torch.Tensor, ...]:
 NAMES_IN, NAMES_OUT = ("history", "controls", "z", "h", "c"), ("pose", "h_next", "c_next")
 
 
-def export_step(model, path, opset: int = OPSET) -> Path:
-    """Write the `SamplingStep` of `model` to `path` (ONNX, dynamic batch, traced at batch 2) -> path."""
+def export_step(model, path, opset: int = OPSET, overwrite: bool = False) -> Path:
+    """Write the `SamplingStep` of `model` to `path` (ONNX, dynamic batch, traced at batch 2) -> path.
+    An existing file is replaced only with overwrite=True."""
     if opset < 17:
         raise ValueError(f"export_step: opset must be >= 17, got {opset}")
-    path = Path(path)
+    (path,) = check_outputs([path], overwrite=overwrite, who="export_step")
     path.parent.mkdir(parents=True, exist_ok=True)
     step = SamplingStep(model).eval()
     axes = {name: {0: "batch"} for name in ("history", "controls", "z", "pose")}
@@ -192,21 +195,23 @@ def start_window(stats, fixed, tau: int, fps: float = 20.0, mode: str = "ci") ->
     return w[:, :63][:, ~fixed].astype(np.float32), w[:, 63:].astype(np.float32)
 
 
-def write_demo_files(out_dir, checkpoints=None, seed: int = 0) -> dict:
+def write_demo_files(out_dir, checkpoints=None, seed: int = 0, overwrite: bool = False) -> dict:
     """Write what web/ bundles into out_dir: moglow_step.onnx and demo.json (stats, skeleton, standing start,
-    and the self-test: commands, noise z and torch's poses in metres).  -> the parity dict of the export."""
+    and the self-test: commands, noise z and torch's poses in metres).  -> the parity dict of the export.
+    Existing files there are replaced only with overwrite=True (the command line: --force)."""
     from course_lib.datasets import FixedDofs, load_stats
     from course_lib.experiments import moglow as lesson06
     from course_lib.skeleton import Skeleton
 
     checkpoints = Path(checkpoints) if checkpoints is not None else lesson06.CHECKPOINTS
     out = Path(out_dir)
+    check_outputs([out / "moglow_step.onnx", out / "demo.json"], overwrite=overwrite, who="course_lib.export")
     out.mkdir(parents=True, exist_ok=True)
     model = lesson06.load_model("moglow", checkpoints)  # sha256-verified, weights_only
     mean, std = load_stats(lesson06.stats_file(checkpoints))
     fixed = FixedDofs.from_stats(mean, std).mask[:63]
     cfg, fps = model.config, lesson06.FPS
-    path = export_step(model, out / "moglow_step.onnx")
+    path = export_step(model, out / "moglow_step.onnx", overwrite=overwrite)
     check = parity(model, path, std[:63][~fixed])
     x0, c0 = start_window((mean, std), fixed, cfg.tau, fps)
     raw = control_sequence(fps=fps, start=tuple(c0[-1] * std[63:] + mean[63:]))
@@ -221,15 +226,20 @@ def write_demo_files(out_dir, checkpoints=None, seed: int = 0) -> dict:
             "mean": mean.tolist(), "std": std.tolist(), "fixed": fixed.astype(int).tolist(),
             "names": list(sk.names), "parents": [int(p) for p in sk.parents], "control_lag": CONTROL_LAG,
             "start_poses": x0.tolist(), "start_controls": c0.tolist(),
-            "selftest": {"phases": [{"name": n, "seconds": s, "command": [f, d, y]} for n, s, f, d, y in SELFTEST_PHASES],
+            "selftest": {"phases": [{"name": n, "seconds": s, "command": [f, d, y]}
+                                    for n, s, f, d, y in SELFTEST_PHASES],
                          "controls_raw": raw.tolist(), "z": z[0].tolist(), "torch_local_m": local.tolist()},
             "export_parity": check}
     (out / "demo.json").write_text(json.dumps(demo, separators=(",", ":")))
     return check
 
 
-if __name__ == "__main__":  # python -m course_lib.export OUT_DIR: the files web/build.mjs bundles
-    import sys
+if __name__ == "__main__":  # python -m course_lib.export OUT_DIR [--force]: the files web/build.mjs bundles
+    import argparse
 
+    ap = argparse.ArgumentParser(description="Write the browser demo's files: the ONNX MoGlow step and demo.json.")
+    ap.add_argument("out", nargs="?", default="build/web-assets", help="output folder (default build/web-assets)")
+    ap.add_argument("--force", action="store_true", help="replace the files already there")
+    args = ap.parse_args()
     torch.set_num_threads(1)
-    print(json.dumps(write_demo_files(sys.argv[1] if len(sys.argv) > 1 else "build/web-assets"), indent=1))
+    print(json.dumps(write_demo_files(args.out, overwrite=args.force), indent=1))

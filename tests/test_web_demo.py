@@ -33,7 +33,8 @@ pytestmark = [pytest.mark.slow,
               pytest.mark.skipif((CHROMIUM is None or NODE is None or not (WEB / "node_modules").is_dir())
                                  and os.environ.get("CI") != "true",
                                  reason="needs Debian's chromium, node and `npm ci` in web/ (.ci/run does both)")]
-FLAGS = ["--headless", "--no-sandbox", "--no-first-run", "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",  # every host but the local server
+FLAGS = ["--headless", "--no-sandbox", "--no-first-run",
+         "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",  # every host but the local server
          "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--window-size=1000,700",
          "--remote-allow-origins=*"]
 

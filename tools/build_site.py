@@ -143,6 +143,10 @@ def landing_page(rows: list[dict], mode: str) -> str:
            "", "## The order of the lessons", "",
            "Each lesson names its prerequisites in its header; an arrow points from a lesson to one that needs it.",
            "", "![The lessons' dependency graph](lesson_graph.png)", "",
+           "## Steer the model in your browser", "",
+           "Lesson 06's pretrained MoGlow runs in a web page, offline: arrow keys or WASD set the speed and turn "
+           "(<a href=\"demo/index.html\">open the demo</a>; `make site` and `make course` build it into "
+           "`site/demo/`).", "",
            "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
     out += [r["name"] for r in rows] + list(study_pages()) + [page.stem for page in extra_pages()] + ["```", ""]
     for r in rows:

@@ -6,7 +6,8 @@ A clip X_{1:T} (T = 240 frames at 60 fps, ``positions_control`` features: 63 joi
 the floor frame + 3 control values, normalised) is modelled as
 
     h^c_{1:T'} = CNN^enc_c(C_{1:T})                      control encoder (sec. 3.2), T' = T / 4
-    mu, sigma  = CNN^enc_x(X_{1:T})                      inference network, eq. (6)
+    e_{1:T'}   = CNN^enc_x(X_{1:T})                      inference network's features, eq. (6)
+    mu, log sigma^2 = W_q e_t + b_q                      a linear posterior head on the pooled features
     z_t        = sigma_t * eps + mu_t                    eq. (3), one latent per pooled step
     c(t)       = RNN^dec(z_t or c(t-1), h^c_t)           modified LSTM, eq. (7)-(9)
     m_c        = [c(1) || ... || c(T')]                  motion canvas (units x T')
@@ -17,13 +18,16 @@ At test time (Algorithm 1) only z_1 is drawn -- from the prior N(0, I), or from 
 of the first 4 frames -- and the cell state is carried on by c(t) = alpha(f * W_c c(t-1) + i * W_h h^c_t).
 
 The paper's loss trains only the first branch of eq. (9): the recursion W_c c(t-1) that Algorithm 1
-runs is never trained, so on our data it forgets z_1 within a few steps and Algorithm 1 becomes a
-function of the control alone (lesson 02, "posterior collapse in action").  ``generation_weight`` > 0
+runs is never trained.  ``generation_weight`` > 0
 adds the ELBO of Algorithm 1's own generative path -- z_1 from the posterior of the first 4 frames,
 every later cell state by the recursion -- to the paper's loss; ``kl_warmup_steps`` (KL annealing)
 and ``free_bits`` are the usual collapse remedies of lesson 01, measured in lesson 02 as well.
 
 Differs from the paper:
+- the posterior head: eq. (6)'s ELU and max-pool act on the encoder's features, and a linear layer
+  (2U -> 2U) reads mu and log sigma^2 from them.  The paper does not say where mu and sigma come from;
+  taking them from the ELU + max-pool output itself would force every mu > -1 and every sigma > 0.61,
+  a region the symmetric prior N(0, I) samples but training never uses.
 - pooling: the paper says "pooling window and stride of size 1" but also 240 -> 60 steps with two
   pooling layers, which needs window = stride = 2; we use 2.
 - the likelihood's standard deviation is not given in the paper; ``obs_std`` (normalised units)
@@ -37,9 +41,9 @@ Differs from the paper:
 - ``generation_weight`` > 0 adds Algorithm 1's ELBO to eq. (5), see above (the CPU preset: 1); the paper
   trains the first branch of eq. (9) only (``generation_weight`` = 0).
 - ``heading_weight`` (a term on Algorithm 1's running yaw-rate error, ``heading_loss``) is ours; the CPU preset sets
-  it to 100 (lesson 02 section 9: the path from the model's own control drifts with its heading, which the per-frame
-  likelihood hardly charges).  ``control_obs_std`` (a narrower likelihood on the 3 control channels) is ours too, off
-  in the preset (it did not lower the path error: ``study vae_lstm_path_error``).
+  it to 100 (the path integrated from the model's own control drifts with its heading, which the per-frame
+  likelihood hardly charges).  ``control_obs_std`` (a narrower likelihood on the 3 control channels) is ours too,
+  off in the preset.
 - ``VaeLstmConfig.cpu()`` shrinks the widths (listed there) so a model trains in minutes on a
   2-core CPU and its checkpoint stays under 5 MB; the paper trains 5000 epochs, we train minutes.
 """
@@ -98,8 +102,8 @@ class VaeLstmConfig:
     def cpu(cls, **overrides) -> VaeLstmConfig:
         """The CPU preset: widths 64->32 (enc), 128->64 (latent/LSTM), 64->32 and 128->64 (control),
         128->64 (decoder), l1 0.1 -> 1e-4 (with our per-clip sums 0.1 dominates the loss at this size),
-        generation_weight 0 -> 1 (Algorithm 1's path trained too: lesson 02 measures why), heading_weight
-        0 -> 100 (a term on Algorithm 1's heading drift, ours: lesson 02 section 9 measures why)."""
+        generation_weight 0 -> 1 (Algorithm 1's path trained too), heading_weight 0 -> 100 (a term on
+        Algorithm 1's heading drift, ours)."""
         return cls(**{"enc_channels": 32, "latent_dim": 64, "control_channels": 32, "control_hidden": 64,
                       "dec_channels": 64, "l1": 1e-4, "generation_weight": 1.0, "heading_weight": 100.0,
                       **overrides})
@@ -181,6 +185,7 @@ class VaeLstm(nn.Module):
         self.config = c = config or VaeLstmConfig()
         self.dropout = nn.Dropout(c.input_dropout)
         self.inference = conv_encoder(c.pose_dim, c.enc_channels, 2 * c.latent_dim, c.kernel, c.pool)
+        self.posterior_head = nn.Linear(2 * c.latent_dim, 2 * c.latent_dim)  # e_t -> (mu_t, log sigma_t^2)
         self.control_encoder = conv_encoder(c.control_dim, c.control_channels, c.control_hidden, c.kernel, c.pool)
         self.cell = ModifiedLstmCell(c.units, c.control_hidden)
         self.decoder = conv_decoder(c.units, c.dec_channels, c.dim, c.kernel, c.pool)
@@ -204,8 +209,8 @@ class VaeLstm(nn.Module):
         """x: (N, T, 66) -> posterior mu, logvar: (N, T', latent) with T' = T / pool^2 (eq. 6)."""
         self._check(x, self.config.dim, "x")
         pose = self.dropout(x[..., : self.config.pose_dim])
-        out = self.inference(pose.transpose(1, 2)).transpose(1, 2)  # (N, T', 2 * latent)
-        mu, logvar = out.chunk(2, dim=-1)
+        e = self.inference(pose.transpose(1, 2)).transpose(1, 2)  # (N, T', 2 * latent) features, eq. (6)
+        mu, logvar = self.posterior_head(e).chunk(2, dim=-1)  # linear: mu and log sigma^2 take any sign
         return mu, logvar.clamp(-12.0, 8.0)
 
     def encode_control(self, control: torch.Tensor) -> torch.Tensor:

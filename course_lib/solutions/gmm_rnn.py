@@ -11,14 +11,20 @@ from __future__ import annotations
 import copy
 import math
 
-import numpy as np
 import torch
 from torch.nn import functional as F
 
 from course_lib.models.contact_cleanup import leg_columns
 from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig, mixture_log_prob
-from course_lib.models.refiner import (Discriminator, HistoryBuffer, Refiner, RefinerConfig, _discriminator_step,
-                                       _refiner_step, root_trajectory)
+from course_lib.models.refiner import (
+    Discriminator,
+    HistoryBuffer,
+    Refiner,
+    RefinerConfig,
+    _discriminator_step,
+    _refiner_step,
+    root_trajectory,
+)
 from course_lib.skeleton import Skeleton
 
 __all__ = ["check_fraction_left", "check_refiner_round", "check_sample_step", "check_sigma_floor", "fraction_left",
@@ -254,7 +260,8 @@ def check_refiner_round(fn, r: int = 3) -> float:
         hint = ": did you forget the 1/2 (eq. 10 halved, the mean cross-entropy)?" if abs(d - 2 * lib_d) < 1e-5 else \
             ": D's batch is the refined half plus as many motions from the buffer, against the real batch"
         raise AssertionError(f"D's loss is {d:.6f}, the library's {lib_d:.6f}{hint}")
-    diff = max(float((p - q).detach().abs().max()) for a, b in ((mine_models[0], lib_models[0]), (mine_models[1], lib_models[1]))
+    pairs = ((mine_models[0], lib_models[0]), (mine_models[1], lib_models[1]))
+    diff = max(float((p - q).detach().abs().max()) for a, b in pairs
                for p, q in zip(a.parameters(), b.parameters(), strict=True))
     assert diff < 1e-5, (f"the losses match but the parameters after the round differ by {diff:.3g}: one "
                          "optimiser step per loss, zero_grad before each backward, and no gradient from D's update "
