@@ -516,14 +516,14 @@ def quality(sample: Sample, reference: list[Motion], seed: int, distribution: bo
         bone_length_violation,
         c2st,
         fid,
-        foot_skate,
+        foot_skate_at_floor,
         ground_penetration,
         inception_score,
         jitter,
     )
 
     pos = sample.positions
-    out = {"foot_skate": foot_skate(pos, fps=FPS), "penetration": ground_penetration(pos),
+    out = {"foot_skate": foot_skate_at_floor(pos, fps=FPS), "penetration": ground_penetration(pos),
            "jitter": jitter(pos, fps=FPS),
            # per clip, against that clip's skeleton; the mean over clips of each clip's worst bone
            "bone_length": float(np.mean([bone_length_violation(x[None], sk)

@@ -9,7 +9,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
-from conftest import load_study
 
 from course_lib.control import energy as E
 from course_lib.control.kinematics import heading_yaw, integrate_root, toe_positions, world_positions
@@ -776,24 +775,6 @@ def test_offline_cases_in_worker_processes_come_back_in_task_order():
     assert list(X.parallel_map(abs, tasks, 2)) == list(X.parallel_map(abs, tasks, 1)) == [3, 1, 2, 5, 4]
 
 
-def test_denoise_skate_split_adds_up_to_the_skate_measure(walk):
-    """study control_denoise_skate: its pairs are foot_skate's pairs (the same mean speed), split into the clean
-    motion's stance and swing, which add up."""
-
-    from course_lib.evaluation import foot_skate
-    from course_lib.synthetic import add_noise
-
-    tool = load_study("control_denoise_skate")
-    noisy = add_noise(walk, seed=1)
-    for out in (walk, noisy):
-        rows = tool.split(out, walk, noisy)
-        assert rows["all"]["speed_sum"] / rows["all"]["pairs"] == pytest.approx(foot_skate([out]), rel=1e-9)
-        parts = ("clean stance", "clean swing")
-        assert sum(rows[k]["pairs"] for k in parts) == rows["all"]["pairs"]
-        assert sum(rows[k]["speed_sum"] for k in parts) == pytest.approx(rows["all"]["speed_sum"], rel=1e-9)
-    assert foot_skate([noisy]) > 10 * foot_skate([walk])  # the noise makes the feet skate
-
-
 def test_online_run_measures_speed_over_the_same_window_whatever_the_batch():
     """online_run's speed after every step is the net speed over the last SPEED_WINDOW (10) frames: with 5-frame
     batches it spans two batches, so batch sizes are compared on one measure (a 5-frame speed is noisier and a
@@ -830,13 +811,14 @@ def test_held_share_known_answers():
 
 def test_plant_legs_holds_low_toes_with_the_legs_and_leaves_the_root(walk):
     from course_lib.control.planting import plant_legs
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
     from course_lib.models.contact_cleanup import leg_columns
 
     bad = shaken_walk(walk)  # hips and knees shake: the stance toes slide
     out = plant_legs(bad, leg_columns(walk.skeleton))
     assert np.abs(out.root_positions - bad.root_positions).max() < 1e-9  # the root stays where it was
-    assert foot_skate([bad]) > 0.1 and foot_skate([out]) < 0.1 * foot_skate([bad])  # measured 0.70 -> 0.016
+    skate = foot_skate_at_floor
+    assert skate([bad]) > 0.1 and skate([out]) < 0.1 * skate([bad])  # measured 0.70 -> 0.016
     assert np.linalg.norm(out.positions() - walk.positions(), axis=-1).mean() < 0.03  # still the walk
     with pytest.raises(ValueError, match="joint-angle columns"):
         plant_legs(bad, [0, 6])
@@ -844,10 +826,11 @@ def test_plant_legs_holds_low_toes_with_the_legs_and_leaves_the_root(walk):
 
 def test_plant_with_prior_keeps_the_motion_when_planting_slides_it_more(prior, walk, monkeypatch):
     from course_lib.control import planting
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
 
     planted = planting.plant_with_prior(walk, prior)
-    assert planted.meta["planted"] and foot_skate([planted]) <= foot_skate([walk])  # mocap: planted, no worse
+    skate = foot_skate_at_floor
+    assert planted.meta["planted"] and skate([planted]) <= skate([walk])  # mocap: planted, no worse
     monkeypatch.setattr(planting, "plant_legs", lambda m, *a, **k: shaken_walk(m))  # a "planting" that slides the feet
     kept = planting.plant_with_prior(walk, prior)
     assert kept.meta["planted"] is False and np.array_equal(kept.positions(), walk.positions())

@@ -84,12 +84,12 @@ def test_cadence_knows_the_answer_and_the_checks_reject_mistakes(clips):
     with pytest.raises(AssertionError, match="steps/min"):  # counts lift-offs too
         S.check_cadence(lambda c, fps: 60.0 * (c[1:] != c[:-1]).sum() / (len(c) / fps), clips)
 
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
 
-    assert S.check_foot_skate(lambda P, sk, fps: foot_skate(P[None], fps=fps, skeleton=sk), clips) < 0.03
+    assert S.check_foot_skate(lambda P, sk, fps: foot_skate_at_floor(P[None], fps=fps, skeleton=sk), clips) < 0.03
 
     def ankle_skate(P, sk, fps):  # the ankles instead of the toe joints
-        return foot_skate(P[None], fps=fps, skeleton=sk, joints=("LeftFoot", "RightFoot"), height=0.12)
+        return foot_skate_at_floor(P[None], fps=fps, skeleton=sk, joints=("LeftFoot", "RightFoot"), height=0.12)
 
     with pytest.raises(AssertionError, match="skate"):
         S.check_foot_skate(ankle_skate, clips)

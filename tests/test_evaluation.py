@@ -18,6 +18,7 @@ from course_lib.evaluation import (
     c2st,
     facing_yaw,
     foot_skate,
+    foot_skate_at_floor,
     frechet_distance,
     ground_penetration,
     heading_error,
@@ -91,17 +92,52 @@ def test_facing_yaw_convention():
 # ----------------------------------------------------------------------------- physics
 
 
-def test_foot_skate_known_speeds():
-    assert foot_skate(rest_clip(), fps=FPS) == 0.0  # standing still
-    np.testing.assert_allclose(foot_skate(rest_clip(velocity=(0.1, 0, 0)), fps=FPS), 0.10, rtol=1e-9)
-    np.testing.assert_allclose(foot_skate([rest_motion(velocity=(0, 0, 0.25))]), 0.25, rtol=1e-9)
-    assert foot_skate(rest_clip(velocity=(1.0, 0, 0), height=1.2), fps=FPS) == 0.0  # flying: no contact
+def test_foot_skate_at_floor_known_speeds():
+    assert foot_skate_at_floor(rest_clip(), fps=FPS) == 0.0  # standing still
+    np.testing.assert_allclose(foot_skate_at_floor(rest_clip(velocity=(0.1, 0, 0)), fps=FPS), 0.10, rtol=1e-9)
+    np.testing.assert_allclose(foot_skate_at_floor([rest_motion(velocity=(0, 0, 0.25))]), 0.25, rtol=1e-9)
+    assert foot_skate_at_floor(rest_clip(velocity=(1.0, 0, 0), height=1.2), fps=FPS) == 0.0  # flying: no contact
     # the threshold is motion.CONTACT_HEIGHT: toes just above it do not count
     lifted = rest_clip(velocity=(1.0, 0, 0), height=0.96 + CONTACT_HEIGHT["ToeBase"])
-    assert foot_skate(lifted, fps=FPS) == 0.0
+    assert foot_skate_at_floor(lifted, fps=FPS) == 0.0
     on_a_step = rest_clip(velocity=(0.1, 0, 0), height=0.96 + 0.2)  # toes 0.225 m up: a floor at y = 0.2
-    assert foot_skate(on_a_step, fps=FPS) == 0.0
-    np.testing.assert_allclose(foot_skate(on_a_step, fps=FPS, floor=0.2), 0.10, rtol=1e-9)
+    assert foot_skate_at_floor(on_a_step, fps=FPS) == 0.0
+    np.testing.assert_allclose(foot_skate_at_floor(on_a_step, fps=FPS, floor=0.2), 0.10, rtol=1e-9)
+
+
+def test_foot_skate_holds_on_real_mocap_at_any_rate():
+    """The default call on the real CMU walk (its floor offset and tilted): near the floor, the same at 30, 60
+    and 120 fps; the whole body dragged at 0.3 m/s scores about the drag; a floor moved 10 cm changes nothing.
+    The rule for a known floor at y = 0 scores the same clip far higher (its stance toes sit below y = 0 and
+    its swing toes pass under 5 cm)."""
+    from course_lib.bvh import CMU_SCALE, cmu_sample_path, map_to_canonical, read_bvh
+
+    walk = map_to_canonical(read_bvh(cmu_sample_path(), scale=CMU_SCALE))[1:]  # frame 0 is a glitch (lesson 00b)
+    skate = foot_skate([walk])
+    assert 0.0 < skate <= 0.10
+    rates = [foot_skate([walk.resample(f)]) for f in (30.0, 60.0, 120.0)]
+    assert max(rates) - min(rates) < 0.1 * skate
+    root = walk.root_positions.copy()
+    dragged, lowered = root.copy(), root.copy()
+    dragged[:, 0] += 0.3 * np.arange(len(walk)) / walk.fps
+    lowered[:, 1] -= 0.10
+    as_motion = lambda r: Motion(walk.rotations, r, walk.skeleton, fps=walk.fps)  # noqa: E731
+    assert foot_skate([as_motion(dragged)]) == pytest.approx(0.3, abs=0.03)
+    assert foot_skate([as_motion(lowered)]) == pytest.approx(skate, rel=1e-9)
+    assert foot_skate_at_floor([walk]) > 2 * skate
+
+
+def test_foot_skate_counts_a_toe_only_when_it_stays_low_for_the_interval():
+    clip = rest_clip(velocity=(0.2, 0, 0))  # toes on the floor, gliding at 0.2 m/s
+    assert foot_skate(clip, fps=FPS) == pytest.approx(0.2, rel=1e-9)
+    swing = clip.copy()
+    swing[::3, :, 1] += 0.3  # every third frame the whole body is 30 cm up: no 0.1-s interval stays low
+    assert foot_skate(swing, fps=FPS) == 0.0
+    assert foot_skate(swing, fps=FPS, interval=None) == pytest.approx(0.2, rel=1e-9)  # frame to frame it counts
+    with pytest.raises(ValueError, match="floor must be 'auto' or a height"):
+        foot_skate(clip, fps=FPS, floor="lowest")
+    with pytest.raises(ValueError, match="interval must be a positive number"):
+        foot_skate(clip, fps=FPS, interval=0.0)
 
 
 def test_ground_penetration_and_jitter():

@@ -163,7 +163,7 @@ def test_noisy_mocap_zero_noise_is_the_mocap_and_noise_shakes(data, monkeypatch)
     """Known answers of lesson 06's noise study: sd 0 scores the decoded mocap itself (its skate and jitter);
     i.i.d. frame noise raises the jitter several-fold and the skate, and so does the shaped noise of the same
     total variance; the held-out poses are not changed."""
-    from course_lib.evaluation import foot_skate, jitter
+    from course_lib.evaluation import foot_skate_at_floor, jitter
     from course_lib.representations import root_start
 
     # CI's tiny data holds out 3 windows: score 8 training windows, decoded on a held-out clip's skeleton
@@ -176,6 +176,6 @@ def test_noisy_mocap_zero_noise_is_the_mocap_and_noise_shakes(data, monkeypatch)
     for shaped in (False, True):
         rows = E.noisy_mocap(data, (0.0, 0.3), seed=0, shaped=shaped)
         assert rows[0.0]["jitter"] == pytest.approx(jitter(mocap)) and rows[0.0]["foot_skate"] == pytest.approx(
-            foot_skate(mocap))
+            foot_skate_at_floor(mocap))
         assert rows[0.3]["jitter"] > 3 * rows[0.0]["jitter"] and rows[0.3]["foot_skate"] > 2 * rows[0.0]["foot_skate"]
     assert torch.equal(data.test["poses"], before)

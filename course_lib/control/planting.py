@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from course_lib.evaluation import foot_skate
+from course_lib.evaluation import foot_skate_at_floor
 from course_lib.models.contact_cleanup import leg_columns, plant_feet
 from course_lib.motion import CONTACT_HEIGHT, Motion
 from course_lib.representations import decode_state_features, encode_state_features, root_start
@@ -53,11 +53,11 @@ def plant_legs(motion: Motion, columns, height: float = CONTACT_HEIGHT["ToeBase"
 def plant_with_prior(motion: Motion, prior, height: float = CONTACT_HEIGHT["ToeBase"],
                      sigma_slide: float = 0.001) -> Motion:
     """`plant_legs` on the leg angles that the prior's training data vary (``prior.fixed``: the columns it never
-    varies, held at their constants), kept only if the planted motion's own foot skate (`evaluation.foot_skate`, at
+    varies, held at their constants), kept only if the planted motion's own foot skate (`foot_skate_at_floor`, at
     ``height``) is not above the motion's: a planting that slides the toes more is not kept (seen once, by hand, on
     lesson 04's running S-curve, where the low toes that the pose calls swinging moved faster after planting).  The
     check reads the motion alone, no reference; motion.meta["planted"] says which was kept."""
     planted = plant_legs(motion, leg_columns(motion.skeleton, prior.fixed), height, sigma_slide)
-    if foot_skate([planted], height=height) <= foot_skate([motion], height=height):
+    if foot_skate_at_floor([planted], height=height) <= foot_skate_at_floor([motion], height=height):
         return planted
     return replace(motion, meta=dict(motion.meta, planted=False))

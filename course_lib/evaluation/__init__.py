@@ -22,6 +22,7 @@ from course_lib.evaluation.metrics import (
     bone_length_violation,
     facing_yaw,
     foot_skate,
+    foot_skate_at_floor,
     ground_penetration,
     heading_error,
     jitter,
@@ -54,7 +55,8 @@ def __dir__():
 
 __all__ = [
     "ClassifierConfig", "MotionClassifier", "ResultsTable", "accuracy", "apd", "bone_length_violation", "c2st",
-    "classifier_features", "contact_agreement", "facing_yaw", "fid", "foot_skate", "frechet_distance",
+    "classifier_features", "contact_agreement", "facing_yaw", "fid", "foot_skate", "foot_skate_at_floor",
+    "frechet_distance",
     "freeze_floor", "ground_penetration", "heading_error", "inception_score", "jitter", "joint_speed",
     "load_classifier", "lower_toe", "mean_sd", "motions_to_batch", "npss", "over_seeds", "path_distance", "pose_error",
     "prediction_error", "root_jerk_split", "root_relative", "speed_error", "table", "wilson_interval",

@@ -33,7 +33,8 @@ from course_lib.motion import CONTACT_HEIGHT, Motion, check_fps
 from course_lib.skeleton import Skeleton
 
 __all__ = [
-    "apd", "bone_length_violation", "facing_yaw", "foot_skate", "ground_penetration", "heading_error",
+    "apd", "bone_length_violation", "facing_yaw", "foot_skate", "foot_skate_at_floor", "ground_penetration",
+    "heading_error",
     "jitter", "npss", "path_distance", "pose_error", "prediction_error", "root_jerk_split", "root_relative",
     "speed_error",
 ]
@@ -195,31 +196,66 @@ def pose_error(pred, target, frames=None, skeleton: Skeleton | None = None) -> d
 # ----------------------------------------------------------------------------- physical plausibility
 
 
+FLOOR_WINDOW_S = 1.0  # foot_skate's floor: the lowest toe within this many seconds either side of a frame
+SKATE_INTERVAL_S = 0.1  # foot_skate's speed: the toe's floor displacement over this interval
+
+
 def foot_skate(motions, fps: float | None = None, skeleton: Skeleton | None = None,
                joints: Sequence[str] = ("LeftToeBase", "RightToeBase"),
-               height: float = CONTACT_HEIGHT["ToeBase"], floor: float = 0.0) -> float:
+               height: float = CONTACT_HEIGHT["ToeBase"], floor: float | str = "auto",
+               interval: float | None = SKATE_INTERVAL_S) -> float:
     """Mean horizontal speed of feet in contact with the floor, m/s (0 for a perfect motion).
 
-    motions: list of Motions or (N, T, J, 3) positions (then give fps).  For each
-    foot joint in ``joints`` and each frame pair (t, t+1) where the joint is below
-    ``height`` above ``floor`` (default course_lib.motion.CONTACT_HEIGHT['ToeBase'] above
-    y = 0; real mocap may need its floor level passed) on both frames,
-    speed = ||(x, z)_{t+1} - (x, z)_t|| * fps.  Returns the mean over all such pairs
-    (0.0 if no foot ever touches the floor).  Unlike `Motion.contacts` there is no
-    speed gate: a sliding foot must count.
+    motions: list of Motions or (N, T, J, 3) positions (then give fps).  A toe (each joint in ``joints``)
+    is in contact over an interval of ``interval`` seconds (k = round(interval * fps) frames, at least 1)
+    when it stays below ``height`` above the floor on every frame of it; its skate there is its horizontal
+    displacement over the interval divided by the interval.  Returns the mean over all such intervals
+    (0.0 if no foot ever touches the floor).  There is no speed gate: a sliding foot must count.
+
+    ``floor="auto"`` (the default) estimates the floor from the data, as real capture needs: on each frame,
+    the lowest toe height within ``FLOOR_WINDOW_S`` = 1 s either side (a floor that is offset, or tilted
+    along a walk, is followed).  A number is a known, level floor (the synthetic data's is 0).  Measuring
+    over 0.1 s rather than one frame makes the answer the same at 30, 60 and 120 fps: one frame's marker
+    noise would otherwise add speed as the frame rate grows.  ``interval=None`` measures frame to frame.
+    `foot_skate_at_floor` is the rule for data whose floor is known: y = 0, frame to frame.
     """
     clips, skel, fps = _clips(motions, "foot_skate", skeleton, fps, min_frames=2)
     fps = _need_fps(fps, "foot_skate")
+    if isinstance(floor, str) and floor != "auto":
+        raise ValueError(f"foot_skate: floor must be 'auto' or a height in metres, got {floor!r}")
+    if interval is not None and not (np.isfinite(interval) and interval > 0):
+        raise ValueError(f"foot_skate: interval must be a positive number of seconds or None, got {interval!r}")
     idx = [skel.index(n) for n in joints]
     speeds = []
     for c in clips:
         f = c[:, idx]  # (T, F, 3)
-        low = f[..., 1] - floor < height
-        both = low[1:] & low[:-1]  # (T-1, F)
-        v = np.linalg.norm(np.diff(f[..., [0, 2]], axis=0), axis=-1) * fps  # (T-1, F)
-        speeds.append(v[both])
+        y = f[..., 1]
+        if floor == "auto":
+            w = max(1, int(round(FLOOR_WINDOW_S * fps)))
+            lowest = y.min(1)
+            level = np.array([lowest[max(0, t - w):t + w + 1].min() for t in range(len(lowest))])[:, None]
+        else:
+            level = float(floor)
+        low = y - level < height  # (T, F)
+        k = 1 if interval is None else int(min(max(1, round(interval * fps)), len(f) - 1))
+        held = np.ones_like(low[k:])
+        for j in range(k + 1):  # below the height on every frame of the interval
+            held &= low[j:len(low) - k + j]
+        v = np.linalg.norm(f[k:, :, [0, 2]] - f[:-k, :, [0, 2]], axis=-1) * fps / k  # (T-k, F)
+        speeds.append(v[held])
     speeds = np.concatenate(speeds)
     return float(speeds.mean()) if speeds.size else 0.0
+
+
+def foot_skate_at_floor(motions, fps: float | None = None, skeleton: Skeleton | None = None,
+                        joints: Sequence[str] = ("LeftToeBase", "RightToeBase"),
+                        height: float = CONTACT_HEIGHT["ToeBase"], floor: float = 0.0) -> float:
+    """Foot skate when the floor is known and level (the synthetic data: y = 0), m/s: for each toe and each
+    frame pair (t, t+1) on which it is below ``height`` above ``floor`` on both frames, its horizontal
+    speed ||(x, z)_{t+1} - (x, z)_t|| * fps, averaged.  The course's targets for generated motion are on this
+    rule (`foot_skate` with floor=0.0, interval=None).  On real capture, whose floor is not at y = 0, use
+    `foot_skate`."""
+    return foot_skate(motions, fps, skeleton, joints, height, floor=float(floor), interval=None)
 
 
 def ground_penetration(motions, skeleton: Skeleton | None = None) -> float:

@@ -104,13 +104,13 @@ def curve_heading_rate(c: np.ndarray, pace: float, fps: float = 30.0, window: in
 def measure_design(m, c: np.ndarray) -> dict:
     """A designed motion against its curve: root-to-curve distance (mean, max), end distance, foot skate."""
     from course_lib.control.energy import nearest_on_polyline
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
 
     xz = torch.from_numpy(m.root_positions[:, [0, 2]])
     _, dist = nearest_on_polyline(xz, torch.from_numpy(c))
     return {"mean_root_to_curve_m": float(dist.mean()), "max_root_to_curve_m": float(dist.max()),
             "end_distance_m": float(np.linalg.norm(m.root_positions[-1, [0, 2]] - c[-1])),
-            "foot_skate_m_s": float(foot_skate([m])), "frames": len(m)}
+            "foot_skate_m_s": float(foot_skate_at_floor([m])), "frames": len(m)}
 
 
 def _config(method: str, scale: float = 1.0):
@@ -323,11 +323,11 @@ def _settle(log: list, key: str, ok) -> list:
 def _denoise_scores(out, clean, noisy=None) -> dict:
     """Joint error (mean, max), skate, contact agreement of ``out`` against ``clean``; with ``noisy`` (a noisy_copies
     clip) also the largest joint error on its spiked frames (nan without one): whether the spikes are gone."""
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
 
     err = np.linalg.norm(out.positions() - clean.positions(), axis=-1)  # (T, J)
     scores = {"mean_joint_error_m": float(err.mean()), "max_joint_error_m": float(err.max()),
-              "foot_skate_m_s": float(foot_skate([out])),
+              "foot_skate_m_s": float(foot_skate_at_floor([out])),
               "contact_agreement": float((out.contacts() == clean.contacts()).mean())}
     if noisy is not None:
         spiked = noisy.meta["noise"]["spike_frames"]
@@ -391,10 +391,10 @@ def denoise_eval(seed: int = 0, clips_per_gait: int = 4, progress=print) -> dict
             p = min(tries, key=lambda q: np.mean([r["mean_joint_error_m"] for r in tries[q]]))
             per[name], best[name] = tries[p], p
     mean = {k: {s: float(np.nanmean([r[s] for r in v])) for s in v[0]} for k, v in per.items()}  # nan: no spike
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
 
     out = {"mean": mean, "best_setting": best,
-           "clean_foot_skate_m_s": float(foot_skate(clean)), "clips": len(clean), "ours_seconds": ours_s,
+           "clean_foot_skate_m_s": float(foot_skate_at_floor(clean)), "clips": len(clean), "ours_seconds": ours_s,
            "refiner_on_clean_mean_joint_error_m": float(np.mean(on_clean))}  # its known answer: a clean input
     if progress:
         progress("denoise", {k: round(v["mean_joint_error_m"], 4) for k, v in mean.items()})

@@ -31,7 +31,6 @@ import torch
 
 from course_lib.corpus import DataSpec, load_clips
 from course_lib.datasets import FixedDofs, WindowDataset, load_stats
-from course_lib.evaluation import foot_skate as foot_skate_of  # noqa: F401  (lesson 03's old name, moved)
 from course_lib.evaluation.contacts import contact_agreement, lower_toe
 from course_lib.evaluation.freezing import freeze_floor, joint_speed  # lesson 06 imports them from here
 from course_lib.motion import Motion
@@ -429,11 +428,11 @@ def continuations(model, refiners: dict, clips: list[Motion], stats, spec: Lesso
 def quality_row(motions, mocap: list[Motion], fps: float = 30.0, seed: int = 0) -> dict:
     """Foot skate (m/s), jitter (m/s^3), ground penetration (m), FID, IS and the C2ST accuracy (with its 95 %
     interval) of a set against mocap."""
-    from course_lib.evaluation import c2st, fid, foot_skate, ground_penetration, inception_score, jitter
+    from course_lib.evaluation import c2st, fid, foot_skate_at_floor, ground_penetration, inception_score, jitter
 
     pos = np.stack([m.positions() for m in motions])
     test = c2st(mocap, motions, seed=seed)
-    return {"foot_skate": foot_skate(pos, fps=fps), "jitter": jitter(pos, fps=fps),
+    return {"foot_skate": foot_skate_at_floor(pos, fps=fps), "jitter": jitter(pos, fps=fps),
             "penetration": ground_penetration(pos, skeleton=motions[0].skeleton),
             "fid": fid(mocap, motions), "is": inception_score(motions),
             "c2st": test["accuracy"], "c2st_low": test["ci_low"], "c2st_high": test["ci_high"]}

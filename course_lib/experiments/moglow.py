@@ -464,11 +464,11 @@ def _mocap_halves(data: MoGlowData, seed: int) -> tuple:
 
 def _scores(gen: list, real_a: list, b, clf, seed: int) -> dict:
     """One row of `quality`: gen (a Motion per held-out clip) scored against mocap half a on its half b."""
-    from course_lib.evaluation import c2st, fid, foot_skate, jitter
+    from course_lib.evaluation import c2st, fid, foot_skate_at_floor, jitter
 
     gen_b = [gen[i] for i in b]  # the half whose mocap is not the reference: the same protocol as mocap's row
     test = c2st(real_a, gen_b, seed=seed)
-    return {"foot_skate": foot_skate(gen), "jitter": jitter(gen), "FID": fid(real_a, gen_b, clf),
+    return {"foot_skate": foot_skate_at_floor(gen), "jitter": jitter(gen), "FID": fid(real_a, gen_b, clf),
             "C2ST": test["accuracy"], "C2ST_low": test["ci_low"], "C2ST_high": test["ci_high"]}
 
 
@@ -478,15 +478,15 @@ def quality(models: dict, data: MoGlowData, seed: int) -> dict:
     FID and C2ST compare one random half of the mocap (a) with the *other* half's samples (b), so that the
     mocap row (a vs the mocap of b) is the same protocol with the same sample sizes (FID is biased upward
     at small n: a floor measured on halves is not comparable with a model scored on every clip)."""
-    from course_lib.evaluation import c2st, fid, foot_skate, jitter
+    from course_lib.evaluation import c2st, fid, foot_skate_at_floor, jitter
 
     clf, starts, real, a, b = _mocap_halves(data, seed)
     real_a, real_b = [real[i] for i in a], [real[i] for i in b]
     native_b = [data.test_clips[i] for i in b]
     floor = c2st(real_a, real_b, seed=seed)
-    rows = {"Mocap (half vs half)": {"foot_skate": foot_skate(real_b), "jitter": jitter(real_b),
+    rows = {"Mocap (half vs half)": {"foot_skate": foot_skate_at_floor(real_b), "jitter": jitter(real_b),
                                      "FID": fid(real_a, real_b, clf), "C2ST": floor["accuracy"]},
-            "Mocap (native rotations)": {"FID": fid(real_a, native_b, clf), "foot_skate": foot_skate(native_b),
+            "Mocap (native rotations)": {"FID": fid(real_a, native_b, clf), "foot_skate": foot_skate_at_floor(native_b),
                                          "jitter": jitter(native_b)}}
     x0, c0 = data.test["poses"][:, :TAU], data.test["controls"][:, :TAU]
     for name, model in models.items():

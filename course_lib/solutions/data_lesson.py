@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from course_lib.evaluation import foot_skate
+from course_lib.evaluation import foot_skate_at_floor
 from course_lib.motion import CONTACT_HEIGHT, CONTACT_SPEED, Motion
 from course_lib.representations import encode, root_yaw_pitch_roll
 from course_lib.skeleton import Skeleton
@@ -143,7 +143,7 @@ def check_foot_skate(fn, clips: list[Motion] | None = None) -> float:
         P = m.positions()
         for speed in (0.0, 0.5):
             Q = _drag(P, m.fps, speed)
-            got, want = float(fn(Q, m.skeleton, m.fps)), foot_skate(Q[None], fps=m.fps, skeleton=m.skeleton)
+            got, want = float(fn(Q, m.skeleton, m.fps)), foot_skate_at_floor(Q[None], fps=m.fps, skeleton=m.skeleton)
             assert np.isclose(got, want, rtol=1e-6, atol=1e-9), (
                 f"{m.action}, body dragged at {speed} m/s: skate {got:.4f} m/s, want {want:.4f} -- the mean of the "
                 "toes' horizontal (x, z) speed over frame pairs where the toe joint is below 0.05 m on both frames")

@@ -89,7 +89,7 @@ def check_angle_distances(fn) -> None:
     q = torch.tensor([1.0, 0, 0, 0], dtype=torch.float64).expand_as(q_hat)
     got = fn(theta)
     assert isinstance(got, tuple) and len(got) == 2, "return a pair (d2, d3), each of theta's shape"
-    for name, g in zip(("d2", "d3"), got):
+    for name, g in zip(("d2", "d3"), got, strict=True):
         want = geodesic(q, q_hat, name)
         g = torch.as_tensor(g, dtype=torch.float64)
         assert g.shape == want.shape, f"{name}: expected shape {tuple(want.shape)}, got {tuple(g.shape)}"

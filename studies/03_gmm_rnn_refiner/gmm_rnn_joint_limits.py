@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from course_lib.evaluation import apd, foot_skate, jitter
+from course_lib.evaluation import apd, foot_skate_at_floor, jitter
 from course_lib.evaluation.contacts import lower_toe
 from course_lib.experiments import gmm_rnn as X
 from course_lib.representations import feature_names
@@ -35,7 +35,7 @@ def run(spec, model, start, stats, mocap) -> tuple[dict, torch.Tensor]:
     return {"in_range_motions": int(((h >= lo - 0.05) & (h <= hi + 0.05)).all(1).sum()),
             "grounded_motions": int((lower_toe(pos, start.skeleton) <= toe_top + 0.05).all(1).sum()),
             "root_height": [float(h.min()), float(h.max())], "apd_m": apd(pos),
-            "foot_skate_m_s": foot_skate(pos, fps=spec.fps), "jitter_m_s3": jitter(pos, fps=spec.fps)}, feats
+            "foot_skate_m_s": foot_skate_at_floor(pos, fps=spec.fps), "jitter_m_s3": jitter(pos, fps=spec.fps)}, feats
 
 
 def main() -> None:
@@ -48,7 +48,7 @@ def main() -> None:
     model, _, stats = X.load_models()
     mocap_pos = np.stack([m.positions() for m in test])
     results = {"command": "python studies/03_gmm_rnn_refiner/gmm_rnn_joint_limits.py --out studies/03_gmm_rnn_refiner/gmm_rnn_joint_limits_results.json",
-               "mocap_4s": {"foot_skate_m_s": foot_skate(mocap_pos, fps=spec.fps),
+               "mocap_4s": {"foot_skate_m_s": foot_skate_at_floor(mocap_pos, fps=spec.fps),
                             "jitter_m_s3": jitter(mocap_pos, fps=spec.fps)}}
     for name, limits in (("without joint limits", False), ("with joint limits (shipped)", True)):
         results[name], feats = run(replace(spec, joint_limits=limits), model, test[0], stats, test)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from course_lib.evaluation import fid, foot_skate, jitter
+from course_lib.evaluation import fid, foot_skate_at_floor, jitter
 from course_lib.experiments import gmm_rnn as X
 from course_lib.results import provenance
 
@@ -34,7 +34,7 @@ def column_groups(skeleton) -> dict:
 def score(features, stats, test, fps) -> dict:
     motions = X.to_motions(features, stats, test, fps)
     pos = np.stack([m.positions() for m in motions])
-    return {"fid": float(fid(test, motions)), "foot_skate": float(foot_skate(pos, fps=fps)),
+    return {"fid": float(fid(test, motions)), "foot_skate": float(foot_skate_at_floor(pos, fps=fps)),
             "jitter": float(jitter(pos, fps=fps))}
 
 

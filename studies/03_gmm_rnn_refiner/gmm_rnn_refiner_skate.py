@@ -17,7 +17,7 @@ import argparse
 import numpy as np
 import torch
 
-from course_lib.evaluation import foot_skate
+from course_lib.evaluation import foot_skate_at_floor
 from course_lib.experiments import gmm_rnn as X
 from course_lib.results import write_study_result
 
@@ -48,7 +48,7 @@ def main() -> None:
         rnn_motions = X.to_motions(cont["RNN"], stats, test, spec.fps)
         rnn_pos = np.stack([m.positions() for m in rnn_motions])
         planted = np.stack([m.contacts() for m in rnn_motions])  # (N, T, 2): the RNN's toes low and slow
-        row = {"RNN": {"foot_skate": foot_skate(rnn_pos, fps=spec.fps),
+        row = {"RNN": {"foot_skate": foot_skate_at_floor(rnn_pos, fps=spec.fps),
                        "toe speed where the RNN plants": toe_speed_where_planted(rnn_pos, planted, sk, spec.fps)}}
         for name in ("GAN1", "GAN2"):
             variants = {name: cont[name]}
@@ -58,7 +58,7 @@ def main() -> None:
                 variants[f"{name}, only {g} from R"] = only
             for key, feats in variants.items():
                 pos = np.stack([m.positions() for m in X.to_motions(feats, stats, test, spec.fps)])
-                row[key] = {"foot_skate": foot_skate(pos, fps=spec.fps),
+                row[key] = {"foot_skate": foot_skate_at_floor(pos, fps=spec.fps),
                             "toe speed where the RNN plants": toe_speed_where_planted(pos, planted, sk, spec.fps)}
         out["seeds"][str(seed)] = row
         print(seed, {k: round(v["foot_skate"], 3) for k, v in row.items()}, flush=True)

@@ -81,7 +81,7 @@ BASE = _base()
 
 def measure(model, test, stats, spec, seed: int = 0) -> dict:
     """The RNN-alone numbers of one model (see the module docstring)."""
-    from course_lib.evaluation import fid, foot_skate, ground_penetration, jitter, root_jerk_split
+    from course_lib.evaluation import fid, foot_skate_at_floor, ground_penetration, jitter, root_jerk_split
     from course_lib.experiments import gmm_rnn as X
 
     T = int(round(spec.eval_seconds * spec.fps))
@@ -91,11 +91,11 @@ def measure(model, test, stats, spec, seed: int = 0) -> dict:
         f = X.one_step(model, mocap, stats, bias=spec.sample_bias, seed=seed, angle_scale=spec.sample_angle_noise,
                        root_scale=spec.sample_root_noise, **kw)
         motions = X.to_motions(f, stats, mocap, spec.fps)
-        out[f"{name}_skate"] = foot_skate(motions)
+        out[f"{name}_skate"] = foot_skate_at_floor(motions)
         out[f"{name}_jitter"] = jitter(motions)
     feats = X.continuations(model, {}, test, stats, spec, seed)["RNN"]
     motions = X.to_motions(feats, stats, test, spec.fps)
-    out.update({"free_skate": foot_skate(motions), "free_jitter": jitter(motions),
+    out.update({"free_skate": foot_skate_at_floor(motions), "free_jitter": jitter(motions),
                 "free_penetration": ground_penetration(motions), "free_fid": fid(mocap, motions),
                 "free_root_jerk": root_jerk_split(motions)})
     lg = X.long_generation(model, None, test[0], stats, spec, test, seed)
@@ -105,11 +105,11 @@ def measure(model, test, stats, spec, seed: int = 0) -> dict:
 
 
 def mocap_row(test, spec) -> dict:
-    from course_lib.evaluation import foot_skate, ground_penetration, jitter, root_jerk_split
+    from course_lib.evaluation import foot_skate_at_floor, ground_penetration, jitter, root_jerk_split
 
     T = int(round(spec.eval_seconds * spec.fps))
     mocap = [m[:T] for m in test]
-    return {"free_skate": foot_skate(mocap), "free_jitter": jitter(mocap),
+    return {"free_skate": foot_skate_at_floor(mocap), "free_jitter": jitter(mocap),
             "free_penetration": ground_penetration(mocap), "free_root_jerk": root_jerk_split(mocap)}
 
 

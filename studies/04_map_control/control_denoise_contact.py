@@ -24,7 +24,7 @@ import torch
 from course_lib.control import denoise
 from course_lib.control.denoise import DenoiseConfig
 from course_lib.datasets import noisy_copies
-from course_lib.evaluation import foot_skate
+from course_lib.evaluation import foot_skate_at_floor
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 from course_lib.results import provenance
@@ -49,7 +49,7 @@ def scores(clips: list, config: DenoiseConfig, seed: int = 0) -> dict:
     out = mean_scores(noisy, clips, config, seed=seed)
     out["noisy_mean_joint_error_m"] = float(np.mean([C._denoise_scores(n, c)["mean_joint_error_m"]
                                                      for n, c in zip(noisy, clips, strict=True)]))
-    out["clean_foot_skate_m_s"] = float(foot_skate(clips))
+    out["clean_foot_skate_m_s"] = float(foot_skate_at_floor(clips))
     out["seconds"] = time.perf_counter() - t0
     return out
 

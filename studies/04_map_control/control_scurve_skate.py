@@ -1,7 +1,7 @@
 """Lesson 04 side experiment (issue 16): where the running S-curve's foot skate comes from (seed 0, the recorded
 design settings).  The recorded design skates 0.079 m/s, just over the 2x limit of lesson 03's refined motion.
 This designs it again without planting, plants it (`planting.plant_legs`), and splits the skate measure
-(`evaluation.foot_skate`: the mean floor speed of toes below 5 cm on both frames of a pair) pair by pair: how many
+(`evaluation.foot_skate_at_floor`: the mean floor speed of toes below 5 cm on both frames of a pair) pair by pair: how many
 pairs, the fastest ones, the share of the skate that the fastest pair alone makes, and where that pair is (its
 frames, toe and toe heights).
 
@@ -20,7 +20,7 @@ import torch
 from course_lib.control import design_motion
 from course_lib.control.design import default_prior
 from course_lib.control.planting import plant_legs
-from course_lib.evaluation import foot_skate
+from course_lib.evaluation import foot_skate_at_floor
 from course_lib.experiments import control as C
 from course_lib.experiments.gmm_rnn import rounded
 from course_lib.models.contact_cleanup import leg_columns
@@ -37,7 +37,7 @@ def pairs(m) -> dict:
     v = np.linalg.norm(p[1:, :, [0, 2]] - p[:-1, :, [0, 2]], axis=-1) * m.fps
     fast = np.sort(v[low])[::-1]
     t, k = np.unravel_index(np.argmax(np.where(low, v, -1.0)), v.shape)  # the fastest pair: frames t, t + 1
-    return {"foot_skate_m_s": float(foot_skate([m])), "low_pairs": int(low.sum()),
+    return {"foot_skate_m_s": float(foot_skate_at_floor([m])), "low_pairs": int(low.sum()),
             "fastest_pair": {"frames": [int(t), int(t) + 1], "toe": ["left", "right"][k],
                              "toe_heights_m": p[t:t + 2, k, 1].tolist(),
                              "toe_heights_around_m": p[max(t - 3, 0):t + 5, k, 1].tolist()},
