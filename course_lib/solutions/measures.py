@@ -88,12 +88,12 @@ def _clips(n_subjects: int = 2) -> list[Motion]:
 
 def check_skate_prediction(predicted) -> None:
     """predicted: the foot skate (m/s) of real clips dragged along x at 0.3 m/s, checked against a run."""
-    from course_lib.evaluation import foot_skate
+    from course_lib.evaluation import foot_skate_at_floor
 
     assert isinstance(predicted, (int, float)) and not isinstance(predicted, bool) and math.isfinite(predicted), \
         f"give your prediction as one number in m/s, got {predicted!r}"
     clips = _clips(1)
-    before, after = foot_skate(clips), foot_skate(dragged(clips, 0.3))
+    before, after = foot_skate_at_floor(clips), foot_skate_at_floor(dragged(clips, 0.3))
     assert abs(predicted - after) <= 0.05, (
         f"you predicted {predicted:.3f} m/s; the run gives {after:.3f} m/s (undragged: {before:.4f}). "
         + ("A planted toe was still; dragged, it moves at the drag's speed." if predicted < after
@@ -164,7 +164,7 @@ def check_noise_jitter(fn) -> None:
 def check_fid_change(fn, reference: list[Motion], clips: list[Motion], classifier) -> None:
     """fn(clips) -> new Motions a person would see as changed, which FID scores at least 10x its floor while foot skate
     and jitter stay within 20 % of the original's."""
-    from course_lib.evaluation import classifier_features, fid, foot_skate, jitter
+    from course_lib.evaluation import classifier_features, fid, foot_skate_at_floor, jitter
 
     before = [m.rotations.copy() for m in clips]
     changed = fn(clips)
@@ -177,7 +177,7 @@ def check_fid_change(fn, reference: list[Motion], clips: list[Motion], classifie
     value = fid(ref, classifier_features(changed, classifier), classifier)
     assert value >= 10 * floor, \
         f"FID {value:.1f} against a floor of {floor:.1f}: FID must see the change (10x the floor)"
-    for name, measure in (("foot skate", foot_skate), ("jitter", jitter)):
+    for name, measure in (("foot skate", foot_skate_at_floor), ("jitter", jitter)):
         a, b = measure(clips), measure(changed)
         tol = 0.2 * a + (0.005 if name == "foot skate" else 0.0)
         assert abs(b - a) <= tol, (f"{name} moved from {a:.4g} to {b:.4g}: this change is seen by {name} too; "
