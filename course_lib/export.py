@@ -22,6 +22,7 @@ rollout can part from torch's by more than one step's rounding -- `parity` repor
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -90,7 +91,9 @@ def export_step(model, path, opset: int = OPSET, overwrite: bool = False) -> Pat
     step = SamplingStep(model).eval()
     axes = {name: {0: "batch"} for name in ("history", "controls", "z", "pose")}
     axes.update({name: {1: "batch"} for name in ("h", "c", "h_next", "c_next")})
-    with torch.no_grad():
+    with torch.no_grad(), warnings.catch_warnings():
+        # the exporter warns about LSTMs traced at batch > 1 without initial states: ours are inputs (h, c)
+        warnings.filterwarnings("ignore", message="Exporting a model to ONNX with a batch_size other than 1")
         torch.onnx.export(step, _example(model, TRACE_BATCH), str(path), input_names=list(NAMES_IN),
                           output_names=list(NAMES_OUT), dynamic_axes=axes, opset_version=opset, dynamo=False)
     return path
