@@ -7,7 +7,8 @@ control, denoising, initial-state estimation.  Taught in notebooks/04_map_contro
 Modules (one concept each): rnn_prior (eq. 15-16), energy (eq. 17-18), kinematics (eq. 4 in torch), window
 (eq. 19 on a window), rollout (the sampler as a function of its noise), pso, lbfgs, design (sec. 5.2), online
 (eq. 20-23), denoise (eq. 24-25), lowpass (zero-phase filters: baselines and denoise's start), dropouts (held
-frames), initial_state (eq. 26), starts (held-out start frames).
+frames), spikes (outlier joints), planting (feet held after a search), initial_state (eq. 26), starts (held-out
+start frames).
 """
 
 from course_lib.control.denoise import DenoiseConfig, denoise

@@ -12,42 +12,34 @@ state estimated on the input's first two frames (initial_state.py).
 Taught in notebooks/04_map_control.ipynb.
 
 Differs from the paper (which gives no sigmas, no start and no noise model beyond eq. 25's Gaussians):
-
-- sigma_root 1 cm and sigma_angle 0.03 rad: the noise model's scales (synthetic.add_noise: root 5 mm, joint
-  jitter 0.02 rad) widened; 0.03 picked on tuning clips (study control_denoise_start).  Angles are the expmaps
-  of eq. (3) and the root's pitch and roll; the contact bits are the input's (derived from its pose; taking them
-  from the start or re-deriving them each round, ``contact_bits``, measured no better).  Frame 0 is kept as given
-  (the start the integration of eq. 4 needs; the low-passed frame 0, ``first_frame="start"``, measured worse).
-- Fixed-mixture rounds.  Minimising eq. (15) through the RNN's inputs as well let L-BFGS move earlier frames to
-  where the model is most confident (its sigmas are floored at 0.01 of the data's std): the prior fell to -200
-  nats/frame (mocap: -80) and the joint error rose from 2.0 to 3.0 cm on a held-out walk.  We therefore alternate:
-  fix every frame's mixture as predicted from the current estimate, minimise eq. (19) over the frames with those
-  mixtures (d = 0), repeat (``rounds``); ``rounds=0`` is the plain joint minimisation.  Even with fixed mixtures,
-  the model's 0.01 sigma floor made some joint angles of an unseen subject cost 17 sigma, so the energy floors the
-  sigmas at ``prior_min_std`` = 0.3 (normalised units).
-- The start.  From the noisy input itself L-BFGS stopped in a minimum near it, above the clean motion's eq. (19)
-  energy (6 of 8 clips, 0.90x the input's joint error; started at the clean motion the same energy gives 0.47x:
-  study control_denoise_floor).  The low-pass start is what a reader can compute instead.
-- Dropped frames.  A capture's lost frame holds the last good frame bit for bit (make_noisy does the same); such a
+- sigma_root = 1 cm and sigma_angle = 0.03 rad: the noise model's scales (synthetic.add_noise: root 5 mm, joint
+  jitter 0.02 rad) widened, sigma_angle chosen on tuning clips.  Angles are the expmaps of eq. (3) and the root's
+  pitch and roll.  The contact bits are the input's, derived from its pose (``contact_bits`` takes them from the
+  start or re-derives them each round).  Frame 0 is kept as given: the integration of eq. (4) starts there
+  (``first_frame="start"`` takes the search start's).
+- fixed-mixture rounds (``rounds`` = 3): each round fixes every frame's mixture as predicted from the current
+  estimate and minimises eq. (19) over the frames with those mixtures (d = 0).  Minimising eq. (15) through the
+  RNN's inputs as well (``rounds=0``) lets L-BFGS move earlier frames to where the model is most confident: the
+  prior then rates the estimate far above mocap and the joint error grows.  The prior's sigmas are floored at
+  ``prior_min_std`` = 0.3 normalised units (the model's floor: 0.01), else a joint angle of an unseen subject
+  costs many sigmas.
+- the start: from the noisy input itself L-BFGS stops in a minimum near the input; the 4-Hz low-pass is a start
+  a reader can compute instead.
+- dropped frames: a capture's lost frame holds the last good frame bit for bit (make_noisy does the same).  Such a
   frame is left out of eq. (25) (a missing observation, not a measurement of a frozen pose) and interpolated in
-  the start (``held_frames="fill"``; runs of at most dropouts.MAX_RUN frames with a good frame after them: a longer
-  stillness is real).  Measured on the tuning clips: 1.48 -> 1.14 cm mean joint error.
-- Spikes (ours, ``spike_angle``).  Eq. (25)'s Gaussian followed make_noisy's spikes (1 % of frames, 0.6-rad-sd
-  kicks) part of the way: the largest error left was at a spiked frame in 3 of the 8 scored clips.  A joint more
-  than 0.35 rad from the median of its 3 frames around it (spikes.py; no joint of 34 held-out clean clips is) is a
-  missing observation: its columns are left out of eq. (25), and its rotation is interpolated in the input (the
-  eq. 26 state and the contact bits come from that) and in the start (study control_denoise_spikes).  The first
-  and last frame cannot be tested (spikes.py), so frame 0 is kept as given even if it is spiked.
-- Planting (ours, ``plant``).  Eq. (18) as a soft term leaves the estimate's feet skating 12x (scored clips) to 18x
-  (tuning clips) the clean motion's: neither the prior nor a 3-cm contact sigma resolves the half millimetre a frame
-  a planted toe may move (study control_denoise_prior), and lesson 03's `plant_feet` after the filter held the
-  toes in contact only by moving the root (joint error 1.2 -> 3.5 cm, study control_denoise_legs).  So the
-  estimate is followed by `planting.plant_with_prior`: every toe that the estimate's own pose has in contact or that
-  is below 5 cm (design.py's rule, the foot-skate measure's own height) is held still and on the floor by the hip,
-  knee and ankle angles alone, the root as filtered.  On the tuning clips (held-out 4-7 of each gait) the skate fell
-  from 0.122 to 0.013 m/s with lesson 03's sigma_slide of 3 mm (just under 2x the clean 0.0068) and to 0.0039 with
-  1 mm, at the same joint error (1.16 -> 1.15 cm); 1 mm is shipped (study control_denoise_legs measures both on
-  the tuning and the scored clips).
+  the start (``held_frames="fill"``; runs of at most dropouts.MAX_RUN frames with a good frame after them: a
+  longer stillness is real).
+- spikes (ours, ``spike_angle`` = 0.35 rad): eq. (25)'s Gaussian follows a spike part of the way.  A joint farther
+  than that from the median of its 3 frames around it (spikes.py) is a missing observation: its columns are left
+  out of eq. (25), and its rotation is interpolated in the input (the eq. 26 state and the contact bits come from
+  that) and in the start.  The first and last frame cannot be tested, so frame 0 is kept even if it is spiked.
+- planting (ours, ``plant``): eq. (18) as a soft term leaves the estimate's feet skating several times as much as
+  the clean motion's, since neither the prior nor a 3-cm contact sigma resolves the half millimetre a frame a
+  planted toe may move (studies/04_map_control/README.md, control_denoise_prior).  So the estimate is followed by
+  `planting.plant_with_prior`: every toe that the estimate's own pose has in contact, or that is below 5 cm
+  (design.py's rule), is held still and on the floor by the hip, knee and ankle angles alone, the root as
+  filtered (moving the root as well, as lesson 03's contact handling does, costs joint error).  Its sigma_slide is
+  1 mm a frame (lesson 03's: 3 mm), chosen on the tuning clips.
 """
 
 from __future__ import annotations
@@ -84,7 +76,7 @@ class DenoiseConfig:
     """Denoising settings (the paper gives none)."""
 
     sigma_root: float = 0.01  # m, eq. (25)
-    sigma_angle: float = 0.03  # rad, eq. (25) (study control_denoise_start picked it on tuning clips)
+    sigma_angle: float = 0.03  # rad, eq. (25) (chosen on tuning clips, see "differs")
     iterations: int = 80  # L-BFGS function evaluations per round
     initial_state_steps: int = 100  # eq. (26) gradient steps; 0: the zero state
     prior_min_std: float | None = 0.3  # floor on the prior's sigmas, normalised units (see "differs"); None: 0.01
@@ -109,7 +101,7 @@ class DenoiseConfig:
 @dataclass
 class DenoiseProblem:
     """Eq. (19) with eq. (25)'s data term for one input motion: what `denoise` minimises, exposed so that an
-    experiment can score or differentiate any frames (study control_denoise_floor).
+    experiment can score or differentiate any frames.
 
     c (1, T, D): the input's raw frames (fixed columns at the data's constants); the variables are frames
     1..T-1 (frame 0 is kept); bits (1, T-1, 2) the input's contact bits; energy the WindowEnergy whose

@@ -10,44 +10,31 @@ Sliding windows of 34 frames overlapping by 17 ("spatial temporal optimisation")
 3. L-BFGS (lbfgs.py) on the frames (through the sampler's noise) and d, gradients by BPTT through eq. (4),
 then keep the window's first 17 frames and read them into the RNN.
 
-Differs from the paper: each window measures eq. (17) against the stretch of the curve from the arc length reached
-so far to what the window can cover (`energy.arc_position`, `polyline_between`; the arc length reached never
-decreases): with the whole curve a walk along an S-curve turned back and ended 6.9 m from the curve's end, and a
-closed circle is ambiguous at its start. Eq. (17) alone is met by standing at the curve's start (the RNN's most
-likely motion is a slow shuffle: 1.3 m in 4 s on a 6-m line, 5 cm off it), so a progress term (ours) asks the arc
-length gained along the curve by the window's last kept frame (the motion's last frame in the last window) to be
-the remaining length times the window's share of the remaining time, eq. (22)'s form with sigma_speed = 0.1 m/s,
-weighted by the window's frames: a walk that is behind is asked to go faster, and at the end it is asked to arrive.
-The previous rule (``progress="net"``: each window's net displacement per second, in any direction, at the curve's
-length / seconds) let walks turn back or sideways once the curve stretch ahead ran out and never made up a slow
-start: 1.48 / 1.33 / 0.38 m short of the ends of a line, a circle and an S-curve, against 0.025 / 0.041 / 0.020 m
-(study control_shortfall). A window whose control energy ends above ``retry_control`` (50; windows that follow
-the curve end under 20) is searched again from 4x the candidates, fresh samples, and the better end is kept (ours,
-not the paper's): in the walking circle of lesson 04 one window drifted into poses the prior finds unlikely, and no
-later window came back (0.26 m from the circle on average, 1.47 m from its end, study control_window_energies);
-with the retry, 0.029 m and 0.017 m. On seed 2 of the same circle the contact and prior terms failed a window before
-the control energy passed 50 and no later retry recovered (0.265 m, the end missed by 1.64 m;
-study control_circle_seed2), so a window whose total energy ends more than ``retry_rise`` (200) above the median
-of the windows before it is searched again too (healthy windows stay within about 100 of it).
-sigma_fit^2 = 0.0025 m^2 (the paper: 0.5): against our prior's scale 0.5 let a 4-s walk along a 6-m line drift 0.60 m
-from it on average, 0.01 kept it to 0.09 m (seed 0); at 0.01 greedy steering or L-BFGS alone was still closer than
-ours on the mean of three seeds on four cases (the walking U-turn, the running S-curve, U-turn and polyline), at
-0.0025 ours is the closer on all four (0.025-0.052 m against the baselines' 0.038-0.088; 0.005 left the running
-S-curve to greedy steering, 0.071 against 0.070 m: study control_sigma_fit). The retry thresholds below
-(retry_control, retry_rise) were set at 0.01 and not re-measured at 0.0025, where the same offset costs 4x as much.
-The number of candidates, PSO and L-BFGS iterations are not given; ours are in `DesignConfig`. The variables are
-the RNN sampler's noise (eps, Gumbel) and d, not the frames themselves (rollout.py says why); L-BFGS holds the
-Gumbel variables (the mixture components) fixed.
-Eq. (18)'s contact labels c_i are the RNN's contact bits or a toe below 5 cm (``contact_height``, foot_skate's own
-height; ours): with the bits alone the walking S-curve, U-turn and polyline skated 0.27 / 0.17 / 0.29 m/s, from low
-toes whose bit was off; with the low toes held too, 0.069 / 0.095 / 0.102 (seed 0, study control_contact_height).
-Planting (ours, ``plant``): the designed motion's toes that are in contact (its pose's own contacts, foot low and slow)
-or below ``contact_height`` are then held
-still by the leg angles alone (planting.py, as denoising does); the root is not moved, so the curve's distance and end
-are the search's own.  Eq. (18) inside the energy left the walks skating 0.09-0.14 m/s on the mean of three seeds
-(low swing toes that still slide); lesson 04 section 4 measures the planted designs.
-``DesignConfig(space="frames")`` searches the paper's variables instead (study control_frame_space measures both:
-over frames L-BFGS alone misses the curve's end by metres, and every frame-space search ends farther than ours).
+Differs from the paper:
+- the variables are the RNN sampler's noise (eps, Gumbel) and d, not the frames (rollout.py says why); L-BFGS
+  holds the Gumbel variables (the mixture components) fixed.  ``space="frames"`` searches the paper's variables.
+- sigma_fit^2 = 0.0025 m^2 (the paper: 0.5): against our prior's scale, 0.5 lets a walk drift well off the curve
+  and 0.01 still lost cases to the simpler searches.
+- eq. (17) is measured against the stretch of the curve just ahead: from the arc length reached so far (it never
+  decreases; `energy.arc_position`) to what the window can cover (`polyline_between`).  Against the whole curve a
+  walk could turn back to a nearer part, and a closed circle is ambiguous at its start.
+- a progress term (ours; ``sigma_speed`` = 0.1 m/s, eq. 22's form): eq. (17) alone is met by standing at the
+  curve's start.  The arc length gained by the window's last kept frame (the motion's last frame in the last
+  window) is asked to be the remaining length times the window's share of the remaining time, weighted by the
+  window's frames: a walk that is behind is asked to go faster, and at the end it is asked to arrive.
+  ``progress="net"`` asks each window's net speed instead, in any direction, which lets walks stop short.
+- retries (ours): a window whose control energy ends above ``retry_control`` (50; windows that follow the curve
+  end well under it), or whose total energy ends more than ``retry_rise`` (200) above the median of the windows
+  before it, is searched again from ``retry_factor`` (4) x the candidates, fresh samples; the better end is kept.
+  Otherwise one window that drifts into poses the prior finds unlikely is never recovered by later ones.  Both
+  thresholds were set at sigma_fit^2 = 0.01, where the same offset costs a quarter as much.
+- eq. (18)'s contact labels c_i are the RNN's contact bits or a toe below ``contact_height`` (5 cm, foot_skate's
+  own height): with the bits alone, low swing toes whose bit is off slide.
+- planting (ours, ``plant``): after the windows, every toe in contact (its pose's own contacts, foot low and
+  slow) or below ``contact_height`` is held still by the leg angles alone (planting.py, as denoising does); the
+  root is not moved, so the curve's distance and end are the search's own.  Eq. (18) inside the energy leaves
+  the walks skating.
+- the number of candidates, PSO and L-BFGS iterations are not given; ours are in `DesignConfig`.
 """
 
 from __future__ import annotations
@@ -92,7 +79,7 @@ class DesignConfig:
     hop: int = 17  # frames kept per window: windows overlap by window - hop = 17 (sec. 5.2)
     candidates: int = 24  # RNN samples per window, the PSO's particles
     sample_bias: float = 1.0  # Graves' sampling bias of the candidates (lesson 03's generation uses 2)
-    sigma_fit2: float = 0.0025  # eq. (17), m^2; the paper's 0.5 drifted, 0.01 lost four cases (see "differs")
+    sigma_fit2: float = 0.0025  # eq. (17), m^2; the paper: 0.5 (see "differs")
     pso: PsoConfig = field(default_factory=lambda: PsoConfig(iterations=30, patience=5, rel_tol=1e-3))
     lbfgs: LbfgsConfig = field(default_factory=lambda: LbfgsConfig(iterations=40))
     sigma_speed: float | None = 0.1  # m/s, the progress term (not in the paper); None: eq. (17) alone
@@ -130,7 +117,7 @@ class DesignConfig:
 
 @functools.lru_cache(maxsize=1)
 def default_prior() -> RnnPrior:
-    """The shipped GMM-RNN of lesson 03 as a prior (loaded once per process)."""
+    """The pretrained GMM-RNN of lesson 03 as a prior (loaded once per process)."""
     return RnnPrior.from_checkpoints()
 
 
@@ -184,7 +171,7 @@ def design_motion(curve, seconds: float, gait: str = "walk", seed: int = 0, star
             e = curve_energy(xz, curve_t, config.sigma_fit2)
             if config.sigma_speed is None:
                 return e
-            if config.progress == "net":  # the net displacement's speed, in any direction (the previous rule)
+            if config.progress == "net":  # the net displacement's speed, in any direction (a baseline rule)
                 net = (xz[:, -1] - xz[:, 0]).norm(dim=-1) * fps / (xz.shape[1] - 1)  # (N,) m/s
                 return e + (net - speed) ** 2 / config.sigma_speed ** 2 * (xz.shape[1] - 1)
             # arc length gained along the curve by the window's last frame that will be kept at the end

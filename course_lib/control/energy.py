@@ -10,10 +10,14 @@ Taught in notebooks/04_map_control.ipynb.
 root(s_i) is the root's floor projection (x, z), integrated through eq. (4); c_near,i the nearest point of the
 user's polyline; f(s_i) a foot's contact point (its toe joint), c_i the frame's contact bit.
 
-Differs from the paper: sigma_con and sigma_con,y are not given; we use 0.03 m each (at 0.01 m the contact term of
-the RNN's own samples, which skate a little, outweighed the curve term a hundredfold). Eq. (18) prints the plane
-distance of f(s_{i-1}); we use f(s_i), the frame whose bit says it is in contact. The plane is y = p_plane with
-p_plane the data's stance toe height (the toe joint sits ~2.4 cm above the floor), not y = 0.
+Differs from the paper:
+- sigma_con = sigma_con,y = 0.03 m (the paper gives none): at 0.01 m the contact term of the RNN's own samples,
+  which skate a little, outweighed the curve term.
+- eq. (18) prints the plane distance of f(s_{i-1}); we use f(s_i), the frame whose bit says it is in contact.
+- the plane is y = p_plane, the data's stance toe height (`stance_plane`; the toe joint sits above the floor),
+  not y = 0.
+- offline design uses sigma_fit^2 = 0.0025 m^2, not the paper's 0.5 (``SIGMA_FIT2``, this module's default):
+  design.py says why.
 """
 
 from __future__ import annotations

@@ -8,27 +8,23 @@ character moves; each call optimises the next short batch of frames, MAP with eq
 speed_i = ||root_xz_i - root_xz_{i-1}|| fps; yaw_T the heading of the batch's last frame (2 (1 - cos x) ~ x^2,
 without the jump at +-pi).  Per call: a few RNN samples, the best one, then a few L-BFGS evaluations on its
 sampler noise and d (rollout.py; gradients by BPTT); the lowest-energy batch evaluated is the one returned.
+`python -m course_lib.timings --only online` times a step.
 
 Latency: a command given to ``step`` shapes the ``batch`` frames that call returns (10 frames = 0.33 s at
 30 fps); its speed is the batch's average, its direction is asked of the batch's last frame.
 
-Speed (`python -m course_lib.timings --only online`, one core, 10 frames a step): a median of 212 ms a step before,
-136 ms after four changes measured with cProfile and line_profiler (a step is ~6 rollouts of 10 frames and 5 backward
-passes, each thousands of small torch operations): FK chains by rotation matrices (`skeleton.chain_positions`), the
-contact term reusing the toes that un-anchoring the RNN's features computes anyway (`rollout(with_toes=True)`),
-column masks instead of index assignments in the rollout, and two fewer operations per LSTM layer.
-
 Taught in notebooks/04_map_control.ipynb.
 
-Differs from the paper: sigma_speed, sigma_direction and the batch length are not given (ours below); the
-direction asked of one batch is the current heading turned towards the command by at most ``max_turn``
-(a 180-degree command is reached over several batches instead of asking the prior for a U-turn in 0.33 s).
-Within 1 s (3 batches) of a change of the speed command (by more than 10 % from the command at the last change), a
-batch whose net speed is still more than 10 % off gets a second L-BFGS pass (``speed_retry``): without it, 4 of 36
-running and walking changes over seeds 0-5 took 1.33-2.33 s, with it none took over 1 s
-(study control_online_retry).
-The batch's speed is its net displacement / duration, not the mean per-frame speed of eq. (22): issue 14's
-feet-anchored model met the per-frame mean by zig-zagging (net speeds 0.05-1.2 m/s for a 0.8 command).
+Differs from the paper:
+- sigma_speed, sigma_direction and the batch length are not given; ours are in `OnlineConfig`.
+- the direction asked of one batch is the current heading turned towards the command by at most ``max_turn``
+  (60 degrees): a 180-degree command is reached over several batches instead of asking the prior for a U-turn
+  in 0.33 s.
+- the batch's speed is its net displacement / duration, not the mean per-frame speed of eq. (22): a model of
+  feet-anchored features met the per-frame mean by zig-zagging.
+- a second L-BFGS pass (ours, ``speed_retry``): within 1 s (3 batches) of a change of the speed command (by more
+  than 10 % from the command at the last change), a batch whose net speed is still more than 10 % off is
+  searched again; without it some speed changes took over a second to settle.
 """
 
 from __future__ import annotations
@@ -64,17 +60,17 @@ class OnlineConfig:
     batch: int = 10  # frames optimised and returned per step (the latency)
     candidates: int = 4  # RNN samples per step; the best starts L-BFGS
     lbfgs_iterations: int = 5  # energy evaluations of L-BFGS per step (its max_iter and max_eval); the RNN's
-    # samples keep its pace, so a speed change must come from L-BFGS: at 3 the runner never got back to 2.5 m/s
-    # after the speed-up; at 10, 18-19 frames/s (study control_online_budget)
+    # samples keep its pace, so a speed change must come from L-BFGS: fewer hold the commanded speed less often,
+    # more cost frames/s (studies/04_map_control/README.md, control_online_budget)
     sigma_speed: float = 0.05  # m/s, eq. (22)
-    sigma_direction: float = 0.01  # rad, eq. (23); 0.03 took 2 s for a 180-degree command, 0.01 took 1 s
+    sigma_direction: float = 0.01  # rad, eq. (23); a wider sigma turns to a 180-degree command more slowly
     max_turn: float = math.radians(60)  # the most the asked direction differs from the heading, per batch
     sample_bias: float = 1.0  # Graves' bias of the samples
     speed_retry: float = 0.1  # > 0: a batch whose net speed misses the command by more than this fraction (at least
-    # 0.05 m/s) gets a second L-BFGS pass (ours; 0: never; study control_online_retry) ...
+    # 0.05 m/s) gets a second L-BFGS pass (ours; 0: never; see "differs") ...
     speed_retry_batches: int = 3  # ... within this many batches of a change of the speed command by more than that
     # fraction (0: any batch) ...
-    speed_retry_iterations: int = 5  # ... of this many L-BFGS evaluations (3 left 2 of 36 changes over 1 s)
+    speed_retry_iterations: int = 5  # ... of this many L-BFGS evaluations (3 left some changes over 1 s)
 
     def __post_init__(self):
         if self.batch < 2 or self.candidates < 1 or self.lbfgs_iterations < 0 or self.speed_retry_iterations < 1:
@@ -112,7 +108,7 @@ class OnlineController:
 
     def __init__(self, gait: str = "walk", seed: int = 0, start: Motion | None = None, prior: RnnPrior | None = None,
                  config: OnlineConfig | None = None):
-        import torch._dynamo  # noqa: F401  -- torch.optim imports it on its first optimiser (1.3 s): not in step 1
+        import torch._dynamo  # noqa: F401  -- torch.optim imports it on its first optimiser (slow): not in step 1
 
         self.prior = prior or default_prior()
         self.config = config or OnlineConfig()

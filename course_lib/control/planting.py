@@ -54,9 +54,9 @@ def plant_with_prior(motion: Motion, prior, height: float = CONTACT_HEIGHT["ToeB
                      sigma_slide: float = 0.001) -> Motion:
     """`plant_legs` on the leg angles that the prior's training data vary (``prior.fixed``: the columns it never
     varies, held at their constants), kept only if the planted motion's own foot skate (`foot_skate_at_floor`, at
-    ``height``) is not above the motion's: a planting that slides the toes more is not kept (seen once, by hand, on
-    lesson 04's running S-curve, where the low toes that the pose calls swinging moved faster after planting).  The
-    check reads the motion alone, no reference; motion.meta["planted"] says which was kept."""
+    ``height``) is not above the motion's: a planting that slides the toes more is not kept (low toes that the pose
+    calls swinging can move faster after planting).  The check reads the motion alone, no reference;
+    motion.meta["planted"] says which was kept."""
     planted = plant_legs(motion, leg_columns(motion.skeleton, prior.fixed), height, sigma_slide)
     if foot_skate_at_floor([planted], height=height) <= foot_skate_at_floor([motion], height=height):
         return planted

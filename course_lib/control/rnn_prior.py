@@ -29,7 +29,7 @@ import torch
 from course_lib import representations
 from course_lib.datasets import STD_FLOOR, load_stats
 from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig, mixture_log_prob
-from course_lib.paths import CHECKPOINTS  # the shipped ones (lesson 03 trains gmm_rnn.pt)
+from course_lib.paths import CHECKPOINTS  # the pretrained ones (lesson 03 trains gmm_rnn.pt)
 from course_lib.skeleton import Skeleton
 from course_lib.training import load_checkpoint
 
@@ -65,7 +65,7 @@ class RnnPrior:
 
     @classmethod
     def from_checkpoints(cls, checkpoints: Path | None = None) -> RnnPrior:
-        """The shipped GMM-RNN (checkpoints/gmm_rnn.pt, lesson 03's ``load_models_rnn``) and its stats."""
+        """The pretrained GMM-RNN (checkpoints/gmm_rnn.pt, lesson 03's ``load_models_rnn``) and its stats."""
         checkpoints = Path(checkpoints or CHECKPOINTS)
         model = load_checkpoint(checkpoints / "gmm_rnn.pt", GmmRnn, GmmRnnConfig)
         model.eval()

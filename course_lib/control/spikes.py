@@ -1,15 +1,14 @@
 """Spikes of a capture: a joint whose rotation on one frame jumps far from its neighbours' and back (a marker
 swap, a solver flip; data_scripts/make_noisy.py draws them as 0.6-rad-sd kicks on 1-3 joints of 1 % of frames).
 
-Eq. (25)'s Gaussian data term cannot tell a spike from motion: with sigma_angle 0.03 rad a 0.6-rad kick costs
-200 nats, and the filter follows it part of the way (lesson 04 measured the largest error left at a spiked frame).
-So a spike is found before the search and treated as a missing observation, as a dropped frame is
-(dropouts.py): `spike_mask` flags each (frame, joint) whose rotation is more than ``threshold`` rad from the
-median of the ``window`` frames around it (a Hampel test: the median of 3 frames ignores one outlier, and on a
-smooth rotation it is the frame itself to second order), `despike` replaces the flagged rotations by the slerp
-between that joint's nearest unflagged frames, and denoise.py leaves those joints' columns out of eq. (25).
-Limits: the first and last frame are never flagged (their median window repeats them), nor are two spikes of one
-joint on consecutive frames (the median of 3 then follows them).
+Eq. (25)'s Gaussian data term cannot tell a spike from motion: with sigma_angle 0.03 rad a 0.6-rad kick costs 200
+nats, and the filter follows it part of the way.  So a spike is found before the search and treated as a missing
+observation, as a dropped frame is (dropouts.py): `spike_mask` flags each (frame, joint) whose rotation is more
+than ``threshold`` rad from the median of the ``window`` frames around it (a Hampel test: the median of 3 frames
+ignores one outlier, and on a smooth rotation it is the frame itself to second order), `despike` replaces the
+flagged rotations by the slerp between that joint's nearest unflagged frames, and denoise.py leaves those joints'
+columns out of eq. (25).  Limits: the first and last frame are never flagged (their median window repeats them),
+nor are two spikes of one joint on consecutive frames (the median of 3 then follows them).
 
 Taught in notebooks/04_map_control.ipynb.
 """
@@ -27,10 +26,10 @@ from course_lib.rotations import quat_slerp
 
 __all__ = ["SPIKE_ANGLE", "SPIKE_WINDOW", "despike", "median_deviation", "spike_mask"]
 
-SPIKE_ANGLE = 0.35  # rad: a joint this far from its running median is a spike.  Held-out clean clips (34, walks
-# and runs) reach 0.338 at most (a running knee's turn-around); study control_denoise_spikes measures the rest
+SPIKE_ANGLE = 0.35  # rad: a joint this far from its running median is a spike: just above the largest deviation
+# of the held-out clean walks and runs (a running knee's turn-around)
 SPIKE_WINDOW = 3  # frames of the running median (odd; it ignores (window - 1) / 2 outliers in a row); 5 frames put
-# a running knee's turn-around 0.49 rad from its median
+# a running knee's turn-around above SPIKE_ANGLE
 
 
 def median_deviation(motion: Motion, window: int = SPIKE_WINDOW, frames: np.ndarray | None = None) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Lesson 04's experiment: MAP motion control with the shipped GMM-RNN as the prior (Wang, Chai et al. 2021,
+"""Lesson 04's experiment: MAP motion control with the pretrained GMM-RNN as the prior (Wang, Chai et al. 2021,
 sec. 5.2-5.4), measured on held-out start frames and clips, against the baselines a reader would try first.
 
     python -m course_lib.reproduce control              # every measurement -> results/control.json
@@ -35,7 +35,7 @@ __all__ = ["CURVES", "PACE", "curve", "curve_heading_rate", "heading_rates", "of
            "eval_control", "train_control", "record_results", "recorded_results"]
 
 COMMAND = "python -m course_lib.reproduce control"
-PACE = {"walk": 1.2, "run": 2.5}  # m/s each curve is asked at (held-out walks: median 1.07; runs: 2.86)
+PACE = {"walk": 1.2, "run": 2.5}  # m/s each curve is asked at (near the held-out walks' and runs' median net speeds)
 CURVES = ("line", "circle_r2", "s_curve", "u_turn", "polyline")
 METHODS = ("ours", "lbfgs", "best_of_n", "random", "greedy")
 
@@ -340,7 +340,7 @@ SAVGOL_WINDOWS = (5, 7, 9, 13, 17)  # frames at 30 fps
 
 
 def refine_alone(motions: list, checkpoints: Path = CHECKPOINTS) -> list:
-    """The refiner-alone denoising baseline: lesson 03's shipped refiner (GAN2, seed 0) and its contact handling
+    """The refiner-alone denoising baseline: lesson 03's pretrained refiner (GAN2, seed 0) and its contact handling
     applied to each motion's state features directly (no prior, no data term) -> Motions."""
     from course_lib.experiments.gmm_rnn import Lesson03Spec, clip_offsets, load_models, to_motions, with_contacts
     from course_lib.representations import encode_state_features
@@ -358,7 +358,7 @@ def refine_alone(motions: list, checkpoints: Path = CHECKPOINTS) -> list:
 
 def denoise_clips(first: int = 0, per_gait: int = 4) -> list:
     """The held-out walks then runs the denoising is measured on: clips first .. first + per_gait - 1 of each gait
-    (0-3: the scored clips of `denoise_eval`; 4-7: the tuning clips of study control_denoise_start)."""
+    (0-3: the scored clips of `denoise_eval`; 4-7: the tuning clips `DenoiseConfig`'s settings were chosen on)."""
     from course_lib.control.starts import held_out_clips
 
     return [m for g in ("walk", "run") for m in held_out_clips(g)[first:first + per_gait]]
@@ -438,7 +438,7 @@ WORKERS = min(2, os.cpu_count() or 1)  # processes for the offline designs (the 
 
 def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print, only=None,
                  workers: int = WORKERS) -> dict:
-    """Every measurement of lesson 04 on the shipped GMM-RNN (checkpoints/gmm_rnn.pt), or only the `PARTS`
+    """Every measurement of lesson 04 on the pretrained GMM-RNN (checkpoints/gmm_rnn.pt), or only the `PARTS`
     named in `only` (the others kept as recorded; ``measured_by`` says which command measured each part).
     The offline and equal-time designs run in ``workers`` processes of one thread each; online control, whose
     frames/s are a target, runs alone afterwards."""
@@ -452,7 +452,7 @@ def eval_control(seed: int = 0, checkpoints: Path = CHECKPOINTS, progress=print,
     sha = json.loads((checkpoints / "MANIFEST.json").read_text())["gmm_rnn"]["sha256"]
     from course_lib.training import training_environment
 
-    # the host's torch cpu capability decides rounding, which the online search amplifies (study control_online_cpu)
+    # the host's torch cpu capability decides rounding, which the online search amplifies
     out = {"command": COMMAND, "seed": seed, "pace_m_s": PACE, "gmm_rnn_sha256": sha, "workers": workers,
            "environment": training_environment()}
     times, by = {}, {}

@@ -71,11 +71,11 @@ class Lesson03Spec:
     contact_method: str = "legs"  # "legs": root + leg angles (plant_feet); "root": the root alone (enforce_contacts)
     contact_smooth: int = 5  # frames over which the "root" contact handling's corrections are averaged
     window_stride: int = 5  # frames between training windows
-    rnn_width: int = 256  # FC, LSTM and output widths of the RNN (the paper: 500; 128 jitters more: gmm_rnn_skate.py)
-    rnn_noise: float = 0.1  # sd of the input noise, normalised units (sec. 4.1.3: 0.05; study gmm_rnn_skate)
+    rnn_width: int = 256  # FC, LSTM and output widths of the RNN (the paper: 500; 128 jitters more)
+    rnn_noise: float = 0.1  # sd of the input noise, normalised units (the paper: 0.05; studies/03_gmm_rnn_refiner)
     refiner_window: int = 64  # frames per refiner/discriminator training sequence
     refiner_iterations: int = 3000  # at most this many adversarial rounds after the warm-up (sec. 4.2.2) ...
-    refiner_updates: int = 2500  # ... and at most this many adversarial R updates (the CPU budget, ~4 min)
+    refiner_updates: int = 2500  # ... and at most this many adversarial R updates (the CPU budget)
     max_r_updates: int = 40  # cap on R's adaptive update count per round (the paper has none)
     # the balance rule of sec. 4.2.2 on D's mean cross-entropy (chance ln 2): r doubles below d_loss_low (D too
     # strong) and halves above d_loss_high (D near chance), on the mean of the last schedule_smooth rounds; the
@@ -83,8 +83,8 @@ class Lesson03Spec:
     d_loss_low: float = 0.3
     d_loss_high: float = 0.6
     schedule_smooth: int = 5
-    refiner_pose_lam: float = 10.0  # R's pose self-regularisation (SimGAN, not eq. 13): gmm_rnn_refiner_selfreg.py
-    refiner_leg_pose_lam: float = 30.0  # ... again on the leg angles (RefinerConfig; gmm_rnn_refiner_selfreg.py)
+    refiner_pose_lam: float = 10.0  # R's pose self-regularisation (SimGAN, not eq. 13; RefinerConfig "differs")
+    refiner_leg_pose_lam: float = 30.0  # ... again on the leg angles (RefinerConfig; studies/03_gmm_rnn_refiner)
     discriminator_joints: str = "end_effectors"  # D sees eq. 12's end effectors, or "all" joints (RefinerConfig)
     discriminator_contacts: bool = True  # GAN2's D also sees the contact bits (sec. 4.3 "augment ... input and output")
     pool_sequences: int = 320  # RNN motions generated once for refiner training
@@ -568,7 +568,7 @@ def evaluate_seeds(spec: Lesson03Spec, test: list[Motion], seed: int = 0, checkp
 
 def eval_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: bool = True,
                  checkpoints: Path = CHECKPOINTS) -> dict:
-    """The evaluation of every refiner seed from the shipped checkpoints -> JSON-able dict (nothing is written)."""
+    """The evaluation of every refiner seed from the pretrained checkpoints -> JSON-able dict (nothing is written)."""
     spec = spec or Lesson03Spec()
     _, test, _ = lesson03_data(spec, progress)
     return rounded(evaluate_seeds(spec, test, seed, checkpoints))
@@ -632,7 +632,7 @@ def train_gmm_rnn(spec: Lesson03Spec | None = None, seed: int = 0, progress: boo
 
 
 def load_models_rnn(checkpoints: Path = CHECKPOINTS):
-    """The shipped GMM-RNN alone."""
+    """The pretrained GMM-RNN alone."""
     from course_lib.models.gmm_rnn import GmmRnn, GmmRnnConfig
     from course_lib.training import load_checkpoint
 
@@ -656,7 +656,7 @@ def _resave_rnn(checkpoints: Path, change_model=None, **metrics) -> dict:
 
 
 def store_limits(ds: WindowDataset, checkpoints: Path = CHECKPOINTS, atol: float = 1e-6) -> bool:
-    """Save the shipped RNN with `training_limits` of ds (its training windows) as its joint limits -> whether the
+    """Save the pretrained RNN with `training_limits` of ds (its training windows) as its joint limits -> whether the
     file was rewritten.  Limits that equal the stored ones to ``atol`` (normalised units) are kept: another CPU's
     kernels round their last bits differently (2.6e-14 between AVX512 and AVX2), and rewriting them would change the
     RNN's sha256, which lesson 04's recorded control results name."""

@@ -1,14 +1,14 @@
-"""Contact handling for generated motion (Wang, Chai et al. 2021, sec. 4.3 and the "adjacent" and
+"""Contact handling for generated motion (Wang, Chai et al. 2021, sec. 4.3, with the "adjacent" and
 "point-plane" parts of the contact term of eq. (18)).
 
-Taught in notebooks/03_gmm_rnn_refiner.ipynb.
+Taught in notebooks/03_gmm_rnn_refiner.ipynb; lesson 04's planting (control/planting.py) reuses `plant_feet`.
 
 The contact-aware models label every generated frame with contact bits c = [c_l, c_r].  The paper uses
 them "to automatically enforce environmental contact constraints in output motion": a foot in contact
-stays where it is (adjacent frames) and on the floor (point-plane).  `enforce_contacts` does both on the
-state features themselves, so the result is still a motion of the same skeleton (bone lengths kept,
-joint angles untouched):
+stays where it is (adjacent frames) and on the floor (point-plane).  Both functions here work on the state
+features themselves, so the result is still a motion of the same skeleton (bone lengths kept).
 
+`enforce_contacts` moves the root alone (joint angles untouched):
 - stance foot: among the feet whose bit is on, the lower toe; a flagged toe more than ``max_above`` (5 cm)
   above the other toe is ignored, since the pose says that foot is in the air;
 - point-plane: the root height moves so that the stance toe is at ``toe_floor``; frames without contact
@@ -19,8 +19,12 @@ joint angles untouched):
 - ``smooth`` > 1 averages both corrections over that many frames (less jerk from a noisy toe, a little
   skate back).
 
-The paper gives no algorithm for this step (its MAP control solves the same terms as soft Gaussian
-penalties, eq. (18)); enforcing them exactly on the root is our reading, see the lesson's table.
+`plant_feet` moves the given columns (lesson 03: the root's floor step and height and the hip, knee and ankle
+angles, `leg_columns`) by L-BFGS on the same two terms as sharp soft penalties plus a cost on the change, so
+both feet can be held at once, which the root alone cannot do.
+
+Differs from the paper: it gives no algorithm for this step (its MAP control solves the same terms as soft
+Gaussian penalties, eq. (18)); enforcing them after generation is our reading, see the lesson's table.
 """
 
 from __future__ import annotations

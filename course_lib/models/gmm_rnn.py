@@ -12,47 +12,43 @@ distribution:
     p(x_{t+1})   = sum_i w_i N(x_{t+1} | mu_i, diag(sigma_i^2))     eq. (6), M = 5
     E            = -log p(x_{t+1} | x_t, h_t, C_t)                  eq. (8), computed with logsumexp
 
-Training (sec. 4.1.3): teacher forcing on 50-frame windows at 30 fps, i.i.d. Gaussian input noise
+Training (sec. 4.1.2-4.1.3): teacher forcing on 50-frame windows at 30 fps, i.i.d. Gaussian input noise
 (sd 0.05), RMSProp at lr 1e-3 x 0.95 per epoch, batch 20, every gradient entry clipped to [-5, 5].
 Generation (sec. 4.1.4): run the two initial frames through the network, then sample the mixture
 each step and feed the sample back; `sample_step` carries the LSTM state, so generation can go on
 for as long as wanted.  Decode with ``representations.decode_state_features`` (eq. 4).
 
-Differs from the paper:
-- the standard deviations are floored: sigma = exp(max(sigma_hat, log(min_std))), min_std = 0.01
-  (normalised units).  The contact bits take two values only, so without a floor the NLL of eq. (8)
-  is unbounded below (a component collapses on each value).
-- the activations of FC1-FC3 are not given in the paper; we use ReLU.  FC3 is followed by a linear
-  read-out to the M + 2 M D mixture parameters (Fig. 3's "Output(425)" = 5 + 2 * 5 * 42).
-- "every dimension of the derivative is clipped in range [-5, 5]": we clip every parameter's
-  gradient by value, with a hook registered on each parameter (``grad_clip_value``), so the
-  course's ``fit`` (which only clips by norm) can be used with ``grad_clip=None``.
-- contact bits of a sample are thresholded at 0.5 (in raw units) before being fed back, so the
-  generated contacts are binary as in the data (``contact_mode="clamp"`` clamps to [0, 1] instead,
-  ``"none"`` keeps the raw sample).
-- ``GmmRnnConfig.cpu()`` shrinks every width 500 -> 128 so that a model trains in minutes on a 2-core
-  CPU; the paper pre-trains on CMU and fine-tunes (sec. 4.1.3), we train once on the course data.
-- ``self_feed=(k, m)`` (optional fine-tuning after teacher forcing): inputs alternate k true frames and m
-  of the model's own predictions, so it learns to return from its own errors (acLSTM, Zhou et al. 2018).
-- ``fixed_dims``: columns the training data never vary (24 of the 68 in lesson 03: the knees' and elbows'
-  off-axis angles, ...) are not modelled.  At the sigma floor they contributed about -87 of an NLL of -102,
-  so the NLL said little about the legs; they are left out of eq. (8) and copied from x_t when sampling.
-- ``bernoulli_contacts``: the contact bits get their own Bernoulli head (two log-odds read out beside the
-  mixture) instead of Gaussians with a sigma floor; samples are 0/1.
-- the model keeps the normalisation of the features it reads (``feature_mean``, ``feature_std`` buffers,
-  saved with the weights), and ``features`` names them: lesson 03's RNN reads ``feet_anchored`` features
-  (representations.anchor_on_feet: the root's floor step as the anchor toe's slip, the root height as the
-  lower toe's height), so a planted foot stays planted whatever pose is predicted.
-- ``limits`` at sampling (not in the paper): each sampled frame's columns clamped to a given [low, high], a joint
-  limit such as a rig has; `set_limits` stores them with the weights (lesson 03: the joint angles' range in the
-  training data, experiments.gmm_rnn.training_limits).  Without them the residual angles' errors can add up
-  over long generations until the pose folds.
-- ``noise_scale`` at sampling (not in the paper) scales each column's draw around the chosen component's
-  mean; lesson 03 draws the joint angles at 0.3 of it (see study gmm_rnn_skate).
-- ``residual=True`` (the CPU preset) makes the means residual, mu_i = x_t + mu_hat_i, except for the
-  columns in ``absolute_dims``.  Lesson 03 ships residual joint angles and dyaw and absolute slip, toe
-  height, pitch and roll on the feet-anchored features (study gmm_rnn_skate: absolute angles predicted
-  each frame afresh, and their one-step errors made the feet skate).
+Differs from the paper (the defaults are the paper's unless a line says otherwise):
+- sigma = exp(max(sigma_hat, log(min_std))), min_std = 0.01 normalised units (the paper: no floor): the
+  contact bits take two values only, so without a floor the NLL of eq. (8) is unbounded below.
+- FC1-FC3 use ReLU (the paper gives no activation); FC3 is followed by a linear read-out to the M + 2 M D
+  mixture parameters (Fig. 3's "Output(425)" = 5 + 2 * 5 * 42).
+- the gradient clip of sec. 4.1.2 is a hook on each parameter (``grad_clip_value``), so the course's ``fit``
+  (which only clips by norm) runs with ``grad_clip=None``.
+- a sample's contact bits are thresholded at 0.5 in raw units before being fed back, so they stay binary as in
+  the data (``contact_mode="clamp"`` clamps to [0, 1], ``"none"`` keeps the raw sample).
+- ``GmmRnnConfig.cpu()``: widths 500 -> 128 (lesson 03 trains at 256) and residual means, to train in minutes
+  on a CPU; the paper pre-trains on CMU and fine-tunes (sec. 4.1.3), we train once on the course data.
+- ``residual=True``: mu_i = x_t + mu_hat_i, except in ``absolute_dims``.  Lesson 03 keeps dyaw and the joint
+  angles residual and the slip, toe height, pitch and roll absolute: absolute angles, predicted afresh each
+  frame, made the feet skate.
+- ``features="feet_anchored"`` (lesson 03's): the root's floor step read as the anchor toe's slip and the root
+  height as the lower toe's height (representations.anchor_on_feet), so a planted foot stays planted whatever
+  pose is predicted.  The model keeps the normalisation of the features it reads (``feature_mean``,
+  ``feature_std`` buffers, saved with the weights).
+- ``fixed_dims``: columns the training data never vary (the knees' and elbows' off-axis angles, ...) are left out
+  of eq. (8) and copied from x_t when sampling: at the sigma floor they dominated the NLL, which then said little
+  about the pose.
+- ``bernoulli_contacts``: the contact bits get their own Bernoulli head (two log-odds beside the mixture)
+  instead of Gaussians with a sigma floor; samples are 0/1.
+- ``self_feed=(k, m)`` (optional fine-tuning): inputs alternate k true frames and m of the model's own
+  predictions, so that it learns to return from its own errors (acLSTM, Zhou et al. 2018).
+- at sampling: ``bias`` (Graves 2013; 0 is the paper's sampling) sharpens the weights and narrows the sigmas;
+  ``noise_scale`` scales each column's draw around the chosen mean (lesson 03: 0.3 on the joint angles);
+  ``limits`` clamp each sampled column to a stored [low, high], a joint limit such as a rig has (lesson 03: the
+  training data's range, `set_limits`), so that residual angles cannot drift until the pose folds.
+studies/03_gmm_rnn_refiner/README.md measures lesson 03's choices (anchored features, residual means, input noise,
+angle noise scale, widths, joint limits).
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ b = 32 comes from it; b / 2 of its entries are replaced after each D update), RM
 (R) and 0.005 (D), decay 0.9.  Contact awareness (sec. 4.3): the contact bits are part of x, so R
 reads and refines them; contact_cleanup.py enforces the predicted contacts on the output.
 
-Differs from the paper:
+Differs from the paper (the defaults are the paper's unless a line says otherwise):
 - end effectors are the skeleton's leaf joints (toes, hands, head: 5 for the canonical skeleton).
   p_end is taken in each frame's floor frame (the root's floor projection and heading, as the
   features themselves are translation and rotation invariant) and v_end is the displacement from
@@ -34,33 +34,31 @@ Differs from the paper:
   integrates eq. (4) from the origin for both motions.
 - ``contacts=False`` (the paper's GAN1, no contact awareness) hides the contact bits from R's input
   and passes them through unchanged.
-- the buffer replaces b / 2 = 16 entries per D update (the paper's text); it stores D's view of the
-  refined motions (p_end, v_end and the bits D sees), detached, so D's half-batch from the buffer carries
-  no gradient to R.
-- ``RefinerConfig.cpu()`` shrinks the widths: R 500 -> 128 (FC1), 1000 -> 128 (LSTM); D 500 -> 64.
-- D's loss is the mean cross-entropy of its two-way softmax over the real and the refined motions,
-  (softplus(-l_real) + softplus(l_fake)) / 2: eq. (10) halved.  That is the "discriminator's softmax
-  loss" the balance rule of sec. 4.2.2 reads, and its chance level is ln 2 = 0.69, below the halving
-  threshold 1.  With the sum of the two means (chance 2 ln 2 = 1.39, above 1), a D at chance halved R's
-  update count every round: r fell from 5 to 1 within a few rounds and stayed there.  RMSProp makes the
-  factor 1/2 irrelevant to D's updates.
+- the buffer stores D's view of the refined motions (p_end, v_end and the bits D sees), detached, so D's
+  half-batch from the buffer carries no gradient to R.
+- ``RefinerConfig.cpu()`` shrinks the widths: R 500 -> 128 (FC1), 1000 -> 128 (LSTM); D 500 -> 64, to train
+  on a CPU.
+- D's loss is eq. (10) halved, (softplus(-l_real) + softplus(l_fake)) / 2: the mean cross-entropy of its
+  two-way softmax, the "discriminator's softmax loss" the balance rule of sec. 4.2.2 reads.  Its chance level
+  is ln 2 = 0.69, below the halving threshold 1; with the sum (chance 2 ln 2 = 1.39) a D at chance would halve
+  R's update count every round.  RMSProp makes the factor 1/2 irrelevant to D's updates.
 - each motion's own skeleton: R and D compute p_end and v_end with the rest offsets of the subject the
   motion belongs to (``offsets=`` (N, J, 3); the canonical skeleton when None), as the evaluation decodes
-  every clip on its own skeleton (the subjects' scales are 0.97-1.09).
-- ``pose_lam`` > 0 (not in eq. 13): SimGAN's self-regularisation on the pose as well, pose_lam times the mean
-  squared change (R(x) - x)^2 of every refined column but the contact bits, in sd units.  Eq. 13 keeps only the
-  root near x; with D seeing five end effectors, R then changed the spine, shoulders and arms by 1.65 sd rms,
-  which alone raised the FID from 254 to 2060 (study gmm_rnn_refiner_selfreg, the clamp test).
-- ``leg_pose_lam`` > 0 (not in eq. 13): the pose self-regularisation once more on the hip, knee and ankle angles
-  alone (``contact_cleanup.leg_columns``), leg_pose_lam times their mean squared change.  With pose_lam alone, R's
-  leg change raised GAN1's FID above the RNN's (lesson 03's clamp test: the RNN's legs put back lowered it in
-  every refiner seed); at leg_pose_lam 30 the order RNN > GAN1 > GAN2 holds on the mean of 3 seeds
-  (study gmm_rnn_refiner_selfreg --leg-pose-lam, study gmm_rnn_refiner_legs_results).
+  every clip on its own skeleton.
+- ``pose_lam`` > 0 (not in eq. 13; default 0): SimGAN's self-regularisation on the pose too, pose_lam times the
+  mean squared change (R(x) - x)^2 of every refined column but the contact bits, in sd units.  Eq. 13 keeps only
+  the root near x; without the term R changed the spine, shoulders and arms, which alone raised the FID
+  many times over.
+- ``leg_pose_lam`` > 0 (not in eq. 13; default 0): the same term once more on the hip, knee and ankle angles
+  alone (``contact_cleanup.leg_columns``): with pose_lam alone R's leg change raised GAN1's FID above the RNN's.
+  Lesson 03's weights (10 and 30) and what they change: studies/03_gmm_rnn_refiner/README.md.
 - ``discriminator_joints="all"`` (not in eq. 12): D sees the floor-frame positions and velocities of every joint,
   not only the end effectors (R's input is unchanged).
 - ``discriminator_contacts=True`` (not in eq. 12, off in the paper's config, on for our GAN2): D also sees
   the two contact bits, thresholded at 0.5 with a straight-through gradient (D sees 0/1 for real and
   refined motions alike, R gets the gradient of the soft bit), so R learns bits that match its feet.
+- `AdversarialSchedule` can apply the balance rule to the mean of the last few D losses (``smooth``) and caps R's
+  update count (``max_r_updates``); lesson 03 sets its own band and cap (experiments.gmm_rnn.Lesson03Spec).
 """
 
 from __future__ import annotations
@@ -252,8 +250,8 @@ class Refiner(nn.Module):
         if self.config.discriminator_contacts:
             cols = list(self.config.contact_dims)
             soft = self.raw(x)[..., cols]  # (N, T, 2) raw bits
-            # 0/1 forward; backward the gradient of the soft bit clipped to [0, 1], so R cannot push a bit
-            # without bound (it did: raw bits of +-135 when the gradient passed at any value)
+            # 0/1 forward; backward the gradient of the soft bit clipped to [0, 1], so R cannot push a raw bit
+            # without bound (an unclipped gradient lets it)
             clipped = soft.clamp(0.0, 1.0)
             parts.append((soft > 0.5).to(soft.dtype) + clipped - clipped.detach())
         return torch.cat(parts, -1)
