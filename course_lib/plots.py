@@ -113,11 +113,13 @@ MODEL_COLOURS = {
     "Mocap": "black", "ERD": "tab:brown", "LSTM-3LR": "tab:pink", "cRBM (CD-15)": "tab:olive",
     "VAE-LSTM": "tab:blue", "GMM-RNN": "tab:orange", "GMM-RNN + refiner (GAN2 + contacts)": "tab:red",
     "GMM-RNN, online control": "tab:purple", "HVRNN (Proposed)": "tab:green", "QuaterNet-style GRU": "tab:gray",
-    "MoGlow": "tab:cyan",
+    "MoGlow": "tab:cyan", "Motion matching": "goldenrod", "Motion matching, control": "navy",
 }
 SHORT_NAMES = {"cRBM (CD-15)": "cRBM", "GMM-RNN + refiner (GAN2 + contacts)": "GMM+GAN2",
-               "GMM-RNN, online control": "GMM online", "HVRNN (Proposed)": "HVRNN", "QuaterNet-style GRU": "QuaterNet"}
-_LOG_SCALE = ("foot_skate", "jitter", "fid", "bone_length", "penetration", "apd", "fps", "params", "train_seconds")
+               "GMM-RNN, online control": "GMM online", "HVRNN (Proposed)": "HVRNN", "QuaterNet-style GRU": "QuaterNet",
+               "Motion matching": "MM", "Motion matching, control": "MM control"}
+_LOG_SCALE = ("foot_skate", "foot_skate_auto", "nn_distance",
+              "jitter", "fid", "bone_length", "penetration", "apd", "fps", "params", "train_seconds")
 _TARGETS = {"c2st": (0.5, "target 0.5 (chance): the sets cannot be told apart")}  # a fixed target, not the Mocap row
 
 
@@ -128,6 +130,14 @@ def model_colour(name: str, k: int = 0) -> str:
     return MODEL_COLOURS.get(name, plt.cm.tab20(k % 20))
 
 
+def _spread(row: dict, key: str) -> np.ndarray | float:
+    """The error bar of a row's cell: its 95 % interval where recorded ([[below], [above]] the mean), else the sd."""
+    m, ci = row["mean"][key], row.get("ci", {}).get(key)
+    if ci is None:
+        return row["sd"].get(key, 0.0)
+    return np.array([[max(m - ci[0], 0.0)], [max(ci[1] - m, 0.0)]])
+
+
 def _goal(key: str, better: str) -> str:
     if key in _TARGETS:
         return _TARGETS[key][1]
@@ -136,7 +146,8 @@ def _goal(key: str, better: str) -> str:
 
 def benchmark_panels(results: dict, measures=None, cols: int = 4, width: float = 16.0):
     """Lesson 07's results as one panel per measure: a bar per row in its MODEL_COLOURS colour (mean over the
-    seeds, their sd as an error bar), the Mocap row's value dashed, a fixed target (C2ST: 0.5) dotted, "n/a" for
+    seeds, its 95 % interval as an error bar, or the seeds' sd for results without intervals), the Mocap row's
+    value dashed, a fixed target (C2ST: 0.5) dotted, "n/a" for
     a blank.  results: `course_lib.benchmark.run`'s dict (its "measures": key -> (label, unit, better)).
     -> the matplotlib Figure."""
     import matplotlib.pyplot as plt
@@ -153,7 +164,7 @@ def benchmark_panels(results: dict, measures=None, cols: int = 4, width: float =
             row = results["rows"][name]
             m = row["mean"].get(key)
             if m is not None and not (log and m <= 0):
-                ax.bar(i, m, yerr=row["sd"].get(key, 0.0), color=model_colour(name, i), capsize=3)
+                ax.bar(i, m, yerr=_spread(row, key), color=model_colour(name, i), capsize=3)
             else:  # a blank, or a 0 that a log axis cannot draw
                 ax.text(i, 0.03, "n/a" if m is None else "0", ha="center", va="bottom", fontsize=10,
                         transform=ax.get_xaxis_transform(), color="0.3")
@@ -176,8 +187,8 @@ def benchmark_panels(results: dict, measures=None, cols: int = 4, width: float =
 
 def benchmark_quality_speed(results: dict, qualities=("fid", "foot_skate"), size=(16.0, 6.0), real_time: float = 30.0):
     """Each quality (log) against generation speed (frames per second on one core, log), one panel each: a point
-    per row in its MODEL_COLOURS colour with the seeds' sd as error bars, the Mocap row dashed, real time
-    (``real_time`` frames/s) dotted.  -> the matplotlib Figure."""
+    per row in its MODEL_COLOURS colour with its 95 % intervals (or the seeds' sd) as error bars, the Mocap row
+    dashed, real time (``real_time`` frames/s) dotted.  -> the matplotlib Figure."""
     import matplotlib.pyplot as plt
 
     info = results["measures"]
@@ -186,7 +197,7 @@ def benchmark_quality_speed(results: dict, qualities=("fid", "foot_skate"), size
         for i, (name, row) in enumerate(results["rows"].items()):
             m = row["mean"]
             if quality in m and "fps" in m:
-                ax.errorbar(m["fps"], m[quality], xerr=row["sd"].get("fps"), yerr=row["sd"].get(quality), fmt="o",
+                ax.errorbar(m["fps"], m[quality], xerr=_spread(row, "fps"), yerr=_spread(row, quality), fmt="o",
                             ms=8, capsize=3, color=model_colour(name, i))
                 ax.annotate(SHORT_NAMES.get(name, name), (m["fps"], m[quality]), textcoords="offset points",
                             xytext=(6, 4), fontsize=10, color=model_colour(name, i))
