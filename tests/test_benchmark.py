@@ -173,7 +173,7 @@ def test_skating_ratio_equals_the_lesson_00c_reference():
 def test_memorisation_of_a_replayed_training_clip_is_zero_distance(proto):
     memo = B.Memorisation.build(proto)
     assert 0.0 < memo.p5 < np.median(memo.mocap) < 0.5  # held-out mocap: centimetres from the training set
-    replay = np.stack([m.resample(B.FPS).positions()[5:110] for m in proto.train[:4]])  # training clips, moved on
+    replay = np.stack([m.resample(B.FPS).positions()[6:111] for m in proto.train[:4]])  # training clips, 0.2 s on
     replay[..., [0, 2]] += 3.0  # elsewhere on the floor: where a window walks does not count
     d = memo.distance(replay)
     assert d.max() < 0.02 * memo.p5  # the replay lies on training windows (0.1 s apart)
