@@ -34,8 +34,8 @@ LAYERS = (
     ("datasets", "corpus", "synthetic.report"),
     # 4  one file per paper + baselines; the JAX ports
     ("models", "models.baselines", "models.contact_cleanup", "models.gmm_rnn", "models.hvrnn", "models.lstm_step",
-     "models.moglow", "models.refiner", "models.vae", "models.vae_lstm", "models.jax_moglow", "models.jax_vae",
-     "jax_reference"),
+     "models.moglow", "models.motion_matching", "models.refiner", "models.vae", "models.vae_lstm", "models.jax_moglow",
+     "models.jax_vae", "jax_reference"),
     # 5  the fit loop and checkpoints; metrics, classifiers, FID/IS/C2ST, tables
     ("training", "evaluation", "evaluation.classifiers", "evaluation.contacts", "evaluation.distribution",
      "evaluation.freezing", "evaluation.metrics", "evaluation.perturb", "evaluation.tables"),

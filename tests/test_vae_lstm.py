@@ -294,8 +294,8 @@ def test_must_show_checks_read_the_right_numbers():
     row = lambda v: {str(f): v for f in FRAMES}  # noqa: E731
     t1 = {**{b: row(1.0) for b in BASELINES}, "VAE-LSTM": row(0.1), "VAE-LSTM (prior sample)": row(0.12)}
     t2 = {**{b: row(0.02) for b in BASELINES}, "VAE-LSTM": row(0.01), "VAE-LSTM (prior sample)": row(0.012)}
-    div = {"sampler": "per_step", "data_matched_control_apd_m": 0.015, "algorithm1": {"apd_m": 0.001, "path_error_m": 0.3},
-           "per_step": {"apd_m": 0.015, "path_error_m": 0.1}}
+    div = {"sampler": "per_step", "data_matched_control_apd_m": 0.015,
+           "algorithm1": {"apd_m": 0.001, "path_error_m": 0.3}, "per_step": {"apd_m": 0.015, "path_error_m": 0.1}}
     res = {"table1": t1, "table2": t2, "prior_diversity": div, "latent": {"zero_z_change_m": 0.01}}
     assert all(h for _, _, h in must_show(res).values())
     t1["VAE-LSTM (prior sample)"] = dict(t1["VAE-LSTM"])  # identical rows, as a collapsed model's

@@ -349,7 +349,8 @@ def latent_diagnostics(model, test_ds: WindowDataset) -> dict:
     return {"zero_z_change_m": zero_prior[SAMPLER], "zero_z_prior_change_m": zero_prior,
             "posterior_mean_norm": float(mu.norm(dim=-1).mean()), "prior_draw_norm": float(
                 torch.randn(10000, mu.shape[-1], generator=gen).norm(dim=-1).mean()),
-            "posterior_sigma_mean": float(torch.exp(0.5 * logvar).mean()),"kl_per_dim": kl.tolist(), "kl_per_dim_min": float(kl.min()), "kl_per_dim_mean": float(kl.mean()),
+            "posterior_sigma_mean": float(torch.exp(0.5 * logvar).mean()), "kl_per_dim": kl.tolist(),
+            "kl_per_dim_min": float(kl.min()), "kl_per_dim_mean": float(kl.mean()),
             "dims_above_0.05": int((kl > 0.05).sum()), "z1_kl_per_dim_mean": float(kl1.mean()),
             "z1_kl_per_dim_min": float(kl1.min()),
             "zero_z_training_branch_m": joint_distance(train_post, train_zero, test_ds, starts, control),
@@ -472,9 +473,9 @@ def body_size_study(model, train_ds: WindowDataset, test_ds: WindowDataset, seed
 def eval_vae_lstm(spec: DataSpec | None = None, seed: int = 0, progress: bool = True,
                   checkpoints: Path = CHECKPOINTS, record: bool = False) -> dict:
     """Tables 1-2, Figure 4 curves, the data's matched-control pairs, both samplers' prior diversity beside them,
-    latent diagnostics and the course's targets (``checks``) from the pretrained checkpoints, and the same tables, diversity and diagnostics for the
-    paper's-loss model (``"paper_loss"``, not in the tables) -> JSON-able dict (stored in results/vae_lstm.json
-    with ``record``, as training stores it)."""
+    latent diagnostics and the course's targets (``checks``) from the pretrained checkpoints, and the same tables,
+    diversity and diagnostics for the paper's-loss model (``"paper_loss"``, not in the tables) -> JSON-able dict
+    (stored in results/vae_lstm.json with ``record``, as training stores it)."""
     spec = spec or DataSpec()
     train_ds, test_ds = datasets(spec, load_clips(spec, progress=progress))
     models = {name: load_model(name, checkpoints) for name in lesson02_models()}
