@@ -1,0 +1,77 @@
+"""Lesson 06 study: does MoGlow trained with StyleGestures' locomotion settings (autoregressive dropout 0.7, history
+fed unscaled at generation) plant its feet and move smoothly?  The training-time experiment after
+moglow_history_temperature and moglow_teacher_forced.
+
+    python studies/06_moglow/moglow_dropout_history.py --dropout 0.7 --out studies/06_moglow/moglow_dropout_history_results.json
+
+Trains one MoGlow (the `moglow` recipe of experiments.moglow: `MoGlowConfig.cpu()`, same steps, LR schedule and
+seed) with the given dropout and `history_scale=False`, into memory only (nothing written to checkpoints/), then
+measures: free-running foot skate (known floor) and jitter under the held-out clips' controls at temperatures 1.0
+and 0.8 (moglow_history_temperature's protocol), teacher-forced skate (moglow_teacher_forced's), held-out NLL, and
+the zero-control stepping ratio against the pretrained no-dropout model (lesson 06's control check).
+"""
+
+import argparse
+import importlib.util
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+from course_lib.experiments import moglow as E
+from course_lib.representations import root_start
+from course_lib.results import write_study_result
+
+HERE = Path(__file__).resolve().parent
+
+
+def _study(name: str):
+    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def stepping(model, data, seed: int = 0, n: int = 32) -> float:
+    frames = E.TAU + int(10 * E.FPS)
+    poses, ctl = E.generate(model, data, E.constant_control(data, n, frames), seed)
+    return E.foot_speed(E.local_positions(data, poses[:, E.TAU:], ctl[:, E.TAU:]), E.STEP_LAG)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--dropout", type=float, default=0.7)
+    parser.add_argument("--steps", type=int, default=E.STEPS)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    ht, tf = _study("moglow_history_temperature"), _study("moglow_teacher_forced")
+    t0 = time.perf_counter()
+    data = E.load_data("full")
+    E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": False}
+    model, hist = E.train_model("moglow", data, args.steps, seed=0)
+    train_s = time.perf_counter() - t0
+    starts = [root_start(m) for m in data.test_clips]
+    p, c = data.test["poses"], data.test["controls"]
+    out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": False,
+           "steps": args.steps, "train_seconds": train_s, "nll_per_frame": E.nll_per_frame(model, data.test),
+           "mocap": ht.scores(data, p, c, starts), "free_running": {}}
+    for temp in (1.0, 0.8):
+        row = ht.sample_scores(model, data, starts, temp)
+        out["free_running"][f"T={temp}"] = {**row, "jitter_x_mocap": row["jitter"] / out["mocap"]["jitter"]}
+        print(temp, row, flush=True)
+    skel = data.test_clips[0].skeleton
+    toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
+    mocap = data.positions(p, c, starts)
+    out["teacher_forced_skate"] = {f"T={t}": tf.pair_skate(mocap, data.positions(tf.one_step(model, p, c, t), c, starts),
+                                                           toes) for t in (1.0, 0.0)}
+    speed, speed_nodrop = stepping(model, data), stepping(E.load_model("moglow_nodrop"), data)
+    out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "ratio": speed / speed_nodrop}
+    out["seconds"] = time.perf_counter() - t0
+    write_study_result(args.out, out)
+    print(out)
+
+
+if __name__ == "__main__":
+    main()
