@@ -5,6 +5,7 @@
 #                    each lesson's run time goes to results/lesson_times.json (the headers' times use the class-mode ones)
 #   make site        build the site in site/ from the committed notebooks (executed in CI mode), no execution;
 #                    both also build the browser demo in site/demo/ (make demo: web/, npm packages pinned)
+#   make serve       serve site/ at http://localhost:8000 (a local static server)
 #   make test        ruff + pytest (unit, property, rendering) + nbval on the committed notebooks (COURSE_MODE=ci)
 #   make test-slow   the slow tests (a lone clone, Blender, the site in chromium, every exercise); .ci/run runs both
 #   make setup       .venv with course_lib editable and the [dev] extras (fast when already done)
@@ -31,10 +32,10 @@ DATA := data/locomotion.npz data/actions.npz data/locomotion_noisy.npz
 # the unit tests only: in a notebook kernel it would replace the inline backend and drop every figure.
 HEADLESS := VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow PYVISTA_OFF_SCREEN=true PYVISTA_JUPYTER_BACKEND=static
 
-.PHONY: help setup data course site demo test test-slow lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
+.PHONY: help setup data course site demo serve test test-slow lint unit nbval reproduce student student-copies bench clean distclean delete-student-answers
 
 help:
-	@sed -n '4,17p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '4,18p' Makefile | sed 's/^# \{0,1\}//'
 
 # ---- environment -------------------------------------------------------------------------------
 setup: $(STAMP)
@@ -90,6 +91,11 @@ demo: setup web/node_modules/.stamp
 	$(PY) -m course_lib.export build/web-assets --force
 	cd web && node build.mjs --assets ../build/web-assets --out ../site/demo
 	@echo "demo: site/demo/index.html (add ?selftest=1 for the self-test)"
+
+# the built site over a local static server (the demo page works from file:// too)
+serve:
+	@test -f site/index.html || { echo "serve: no site/ yet: run make site (or make course) first" >&2; exit 1; }
+	$(PY) -m http.server --directory site 8000
 
 web/node_modules/.stamp: web/package.json web/package-lock.json
 	cd web && npm ci --no-audit --no-fund --loglevel=error

@@ -146,7 +146,8 @@ def landing_page(rows: list[dict], mode: str) -> str:
            "## Steer the model in your browser", "",
            "Lesson 06's pretrained MoGlow runs in a web page, offline: arrow keys or WASD set the speed and turn "
            "(<a href=\"demo/index.html\">open the demo</a>; `make site` and `make course` build it into "
-           "`site/demo/`).", "",
+           "`site/demo/`; `make serve` serves the site at http://localhost:8000).", "",
+           "![The demo page after its self-test (?selftest=1)](demo_page.png)", "",
            "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
     out += [r["name"] for r in rows] + list(study_pages()) + [page.stem for page in extra_pages()] + ["```", ""]
     for r in rows:
@@ -202,6 +203,7 @@ def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
         (src / f"{name}.md").write_text(text, encoding="utf-8")
     (src / "index.md").write_text(landing_page(rows, mode), encoding="utf-8")
     lesson_graph.draw(lesson_graph.graph(notebooks), src / "lesson_graph.png")
+    shutil.copy2(CONF_DIR / "_static" / "demo_page.png", src / "demo_page.png")  # a screenshot of site/demo/
     return rows
 
 
