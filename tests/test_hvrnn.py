@@ -281,8 +281,12 @@ def test_nc_forked_from_the_proposed_run_equals_nc_trained_from_scratch():
     specs = H.model_specs(scale=0.04)
     data = H.load_data("ci")
     classifiers = H.train_loss_classifiers(data["train"], 3)
-    proposed, nc = specs["hvrnn_proposed"], specs["hvrnn_nc"]
-    assert proposed.config == dataclasses.replace(nc.config, lambda_cl=proposed.config.lambda_cl)
+    proposed = specs["hvrnn_proposed"]
+    # the shipped NC trains STEPS at its own schedules; the Proposed model longer: no fork between them
+    assert not H.forkable(specs) or H.PROPOSED_STEPS == H.STEPS
+    nc = dataclasses.replace(specs["hvrnn_nc"], config=dataclasses.replace(proposed.config, lambda_cl=0.0),
+                             steps=proposed.steps, batch=proposed.batch)  # NC on the Proposed model's recipe
+    assert H.forkable({"hvrnn_proposed": proposed, "hvrnn_nc": nc})
     _, hist = H.train_model(proposed, data["train"], classifiers, keep_at=proposed.config.cl_start)
     forked, rest = H.continue_training(nc, hist.kept, data["train"])
     scratch, _ = H.train_model(nc, data["train"], classifiers)
@@ -327,3 +331,30 @@ def test_recipe_sweep_tool_runs_one_variant(tmp_path):
     script = "studies/05_hierarchical_vrnn/hvrnn_sweep.py"
     command = f"python {script} --out {out} --only proposed_1200_seed2 --smoke --merge"
     assert merged["added_by"] == {"proposed_1200_seed2": command}
+
+
+def test_retargeted_root_plants_a_short_legged_walk_on_the_canonical_legs():
+    """Known answer: a walk by a subject whose bones are 0.9 x the canonical ones, encoded and played on the
+    canonical skeleton (as every lesson-05 sample is), slides its planted feet and sinks into the floor; with
+    the root's velocities and height retargeted (`retarget_root`) it skates as little as on its own skeleton."""
+    from course_lib.evaluation import foot_skate_at_floor
+    from course_lib.experiments.hvrnn import FPS, foot_quality, retarget_root, to_motions, to_sequence
+    from course_lib.representations import encode_quaternion_root
+    from course_lib.synthetic import generate_action, make_subject
+
+    sub = make_subject(0, seed=0)
+    big = dataclasses.replace(sub, scale=np.full_like(sub.scale, 0.9))
+    walk = generate_action(big, "walk", duration=3.0, seed=0).resample(FPS)
+    canon = Skeleton.canonical()
+    f = encode_quaternion_root(walk)
+    g = retarget_root(f, walk.skeleton)
+    ratio = canon.leg_length() / walk.skeleton.leg_length()
+    assert np.allclose(g[:, -6:-3], f[:, -6:-3] * ratio) and np.array_equal(g[:, :-6], f[:, :-6])
+    assert np.array_equal(g[:, -3:], f[:, -3:])  # yaw rate, pitch, roll are angles: unchanged
+    one = {"action_id": torch.tensor([0]), "style_id": torch.tensor([0]), "subject": ["s00"]}
+    plain = to_motions({"x": torch.from_numpy(f[None]).float(), **one})
+    fixed = to_motions({"x": torch.from_numpy(to_sequence(walk, 90)[None]), **one})
+    own = foot_skate_at_floor([walk], fps=FPS)
+    assert foot_skate_at_floor(plain, fps=FPS) > own + 0.05  # short legs' stride and hip height on longer legs
+    assert foot_quality(plain)["penetration"] > 0.02
+    assert foot_quality(fixed)["foot_skate"] < own + 0.02 and foot_quality(fixed)["penetration"] < 1e-3

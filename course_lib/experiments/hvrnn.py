@@ -44,7 +44,11 @@ ROOT = Path(__file__).resolve().parents[2]
 FPS = 30.0
 SEQ_LEN = 90  # frames per training / generated sequence (3 s at 30 fps); the paper: 200
 COMMAND = "python -m course_lib.reproduce hvrnn"
-STEPS = 1200  # optimiser steps of every shipped generator (about 75 epochs of the 512 training sequences)
+STEPS = 1200  # optimiser steps of the ablations and baselines (about 75 epochs of the 512 training sequences)
+PROPOSED_STEPS = 3600  # the Proposed model's: its leg rotations need them to keep a planted foot still
+PROPOSED_BATCH = 32  # its batch (Ghorbani: 64)
+DAE_STEPS = 1875  # the denoising autoencoder's: 300 epochs of its 200 clips at batch 32 (Ghorbani: 300 epochs)
+RETARGET = True  # root velocities and height scaled to the canonical skeleton's legs (`retarget_root`)
 EVAL_SEEDS = 3  # generation seeds of the evaluation: FID, IS, C2ST, collapse and APD are mean +- sd over them
 # Ghorbani et al. 2020, Table 2 (AMASS, 8 attribute combinations; their real data IS 7.64, FID 0 by definition)
 PAPER_TABLE2 = {"QuaterNet": {"IS": 5.12, "FID": 92.31}, "ERD": {"IS": 5.91, "FID": 86.42},
@@ -56,23 +60,39 @@ PAPER_TABLE2 = {"QuaterNet": {"IS": 5.12, "FID": 92.31}, "ERD": {"IS": 5.91, "FI
 # ----------------------------------------------------------------------------- data
 
 
-def to_sequence(m: Motion, length: int = SEQ_LEN) -> np.ndarray:
-    """One clip -> (length, 90) quaternion_root features at 30 fps from its first frame; a shorter clip is
-    padded by repeating its last frame (Ghorbani pad with zeros, which are no valid quaternions)."""
+def retarget_root(features: np.ndarray, skeleton, to=None) -> np.ndarray:
+    """(T, 90) quaternion_root features of a clip on `skeleton` -> the same with the root's velocities and
+    height scaled to the legs of `to` (default: the canonical skeleton), leg_length(to) / leg_length(skeleton).
+    Every sample is decoded on the canonical skeleton: without this, a long-legged subject's stride and hip
+    height, played on shorter legs, slide the planted foot and push it through the floor."""
+    from course_lib.skeleton import Skeleton
+
+    to = Skeleton.canonical() if to is None else to
+    f = np.array(features, dtype=np.float64, copy=True)
+    f[:, -6:-3] *= to.leg_length() / skeleton.leg_length()  # forward, sideways velocity (m/s), root height (m)
+    return f
+
+
+def to_sequence(m: Motion, length: int = SEQ_LEN, retarget: bool = RETARGET) -> np.ndarray:
+    """One clip -> (length, 90) quaternion_root features at 30 fps from its first frame, the root retargeted to
+    the canonical skeleton (`retarget_root`); a shorter clip is padded by repeating its last frame (Ghorbani
+    pad with zeros, which are no valid quaternions)."""
     from course_lib.representations import encode_quaternion_root
 
     f = encode_quaternion_root(m if m.fps == FPS else m.resample(FPS))
+    if retarget:
+        f = retarget_root(f, m.skeleton)
     if len(f) < length:
         f = np.concatenate((f, np.repeat(f[-1:], length - len(f), 0)))
     return f[:length].astype(np.float32)
 
 
-def sequences(motions: list[Motion], length: int = SEQ_LEN, mirror: bool = False) -> dict:
+def sequences(motions: list[Motion], length: int = SEQ_LEN, mirror: bool = False, retarget: bool = RETARGET) -> dict:
     """Clips -> {"x": (N, length, 90) float32 tensor, "action_id": (N,), "style_id": (N,), "subject": [N]}."""
     clips = list(motions) + ([m.mirror() for m in motions] if mirror else [])
     if not clips:
         raise ValueError("sequences: no clips")
-    return {"x": torch.from_numpy(np.stack([to_sequence(m, length) for m in clips])),
+    return {"x": torch.from_numpy(np.stack([to_sequence(m, length, retarget) for m in clips])),
             "action_id": torch.tensor([ACTIONS.index(m.action) for m in clips]),
             "style_id": torch.tensor([STYLES.index(m.style) for m in clips]),
             "subject": [m.subject for m in clips]}
@@ -99,13 +119,13 @@ def classifier_subjects() -> set[str]:
     return {s.name for s in ClassifierData().split()[0]}
 
 
-def load_data(mode: str | None = None, progress: bool = False) -> dict:
+def load_data(mode: str | None = None, progress: bool = False, retarget: bool = RETARGET) -> dict:
     """-> {"train": sequences (mirrored), "test": held-out sequences (mirrored), "train_clips", "test_clips"}."""
     from course_lib.datasets import load_dataset
 
     train, test = split_subjects(load_dataset("actions", mode=mode, fps=FPS, progress=progress))
-    return {"train": sequences(train, mirror=True), "test": sequences(test, mirror=True), "train_clips": train,
-            "test_clips": test}
+    return {"train": sequences(train, mirror=True, retarget=retarget),
+            "test": sequences(test, mirror=True, retarget=retarget), "train_clips": train, "test_clips": test}
 
 
 def batches(data: dict, batch: int, seed: int):
@@ -132,14 +152,15 @@ def _locomotion_clips(n: int, mode: str | None) -> list[Motion]:
     return load_dataset("locomotion", mode=mode, fps=FPS)[:n]
 
 
-def train_dae(steps: int, seed: int = 0, mode: str | None = None, progress: bool = False):
+def train_dae(steps: int, seed: int = 0, mode: str | None = None, progress: bool = False,
+              retarget: bool = RETARGET):
     """The Table-1 denoising autoencoder trained on 90-frame windows of the locomotion dataset (a different
     subset from the actions data, as the paper's "rest of AMASS") -> (model, History)."""
     from course_lib.models.hvrnn import DaeConfig, DenoisingAutoencoder
     from course_lib.training import fit, seed_everything
 
     clips = _locomotion_clips(200, mode)
-    x = sequences([dataclasses.replace(m, action="walk", style="A") for m in clips])["x"]
+    x = sequences([dataclasses.replace(m, action="walk", style="A") for m in clips], retarget=retarget)["x"]
     seed_everything(seed)
     model = DenoisingAutoencoder(DaeConfig())
     model.set_stats(x)
@@ -202,8 +223,8 @@ class ModelSpec:
 
 
 def model_specs(scale: float = 1.0) -> dict[str, ModelSpec]:
-    """name -> ModelSpec of the six generators, STEPS optimiser steps each; scale multiplies the steps and
-    the schedules (CI runs use a few dozen)."""
+    """name -> ModelSpec of the six generators, STEPS optimiser steps each (the Proposed model PROPOSED_STEPS);
+    scale multiplies the steps and the schedules (CI runs use a few dozen)."""
     from course_lib.models.baselines import AttributeRnn, AttributeRnnConfig
     from course_lib.models.hvrnn import HierarchicalVrnn, HvrnnConfig
 
@@ -213,9 +234,14 @@ def model_specs(scale: float = 1.0) -> dict[str, ModelSpec]:
     # lambda_KL: 0 for the first 1/12, to 1 by half-way; lambda_CL from half-way, to its final value by 11/12;
     # word dropping to drop_max by 2/3 (600-step runs left free-running samples far from the data: FID 5617 vs
     # 1611 at 1200 steps, teacher-forced reconstructions 107 vs 34, measured by one run each of the Proposed)
-    sched = dict(kl_warmup=s(1 / 12), kl_anneal=s(5 / 12), cl_start=s(1 / 2), cl_ramp=s(5 / 12), drop_ramp=s(2 / 3))
+    def schedules(k):  # the same fractions of a run of k x STEPS steps
+        return dict(kl_warmup=s(k / 12), kl_anneal=s(5 * k / 12), cl_start=s(k / 2), cl_ramp=s(5 * k / 12),
+                    drop_ramp=s(2 * k / 3))
+
+    sched, k = schedules(1), PROPOSED_STEPS / STEPS
     specs = [
-        ModelSpec("hvrnn_proposed", "Proposed", HierarchicalVrnn, HvrnnConfig.cpu(**sched), s(1)),
+        ModelSpec("hvrnn_proposed", "Proposed", HierarchicalVrnn, HvrnnConfig.cpu(**schedules(k)), s(k),
+                  PROPOSED_BATCH),
         ModelSpec("hvrnn_sl", "Proposed(SL)", HierarchicalVrnn, HvrnnConfig.cpu(hierarchical=False, **sched), s(1)),
         ModelSpec("hvrnn_nl", "Proposed(NL)", HierarchicalVrnn, HvrnnConfig.cpu(use_alpha=False, **sched), s(1)),
         ModelSpec("hvrnn_nc", "Proposed(NC)", HierarchicalVrnn, HvrnnConfig.cpu(lambda_cl=0.0, **sched), s(1)),
@@ -251,6 +277,14 @@ def train_model(spec: ModelSpec, train: dict, classifiers: list, seed: int = 0, 
                desc=spec.name, callback=keep if keep_at else None)
     hist.kept = kept
     return model.eval(), hist
+
+
+def forkable(specs: dict) -> bool:
+    """Whether NC's run is the Proposed run until lambda_CL turns on (same sizes, schedules, steps and batch), so
+    that `continue_training` can fork it from the Proposed run's state."""
+    p, nc = specs["hvrnn_proposed"], specs["hvrnn_nc"]
+    return (nc.config == dataclasses.replace(p.config, lambda_cl=0.0) and nc.steps == p.steps
+            and nc.batch == p.batch)
 
 
 def continue_training(spec: ModelSpec, kept: dict, train: dict, seed: int = 0, progress: bool = False):
@@ -358,6 +392,34 @@ def joint_errors(model, data: dict, seed: int = 0) -> np.ndarray:
     return torch.rad2deg(quat_geodesic(q.double(), q_hat.double(), "d1")).mean((0, 1)).numpy()
 
 
+GAITS = ("walk", "jog")  # the actions whose feet the skate measures (jumps and lifts leave the floor)
+SKIP = 15  # frames dropped from the start of every sample before measuring (lesson 07's 0.5-s context)
+
+
+def foot_quality(motions: list[Motion], skip: int = SKIP) -> dict:
+    """Clips at 30 fps -> {"foot_skate" (m/s, `foot_skate_at_floor`: the floor at y = 0), "penetration" (m),
+    "jitter" (m/s^3)} of their world positions from frame `skip` on (lesson 07's measures)."""
+    from course_lib.evaluation import foot_skate_at_floor, ground_penetration, jitter
+
+    cut = [m[skip:] for m in motions]
+    return {"foot_skate": foot_skate_at_floor(cut), "penetration": ground_penetration(cut), "jitter": jitter(cut)}
+
+
+def gait_samples(model, n: int, frames: int = 4 * int(FPS), seed: int = 0) -> list[Motion]:
+    """n free-running samples of the gaits (walk or jog, either style, seeded at random), `frames` long, on the
+    canonical skeleton -- what lesson 07's benchmark asks of the model."""
+    g = torch.Generator().manual_seed(seed)
+    a = torch.tensor([ACTIONS.index(GAITS[i]) for i in torch.randint(len(GAITS), (n,), generator=g)])
+    s = torch.randint(len(STYLES), (n,), generator=g)
+    x = model.sample(a, s, frames, generator=g)
+    return to_motions({"x": x.float(), "action_id": a, "style_id": s, "subject": ["generated"] * n})
+
+
+def gait_mocap(clips: list[Motion], frames: int = 4 * int(FPS)) -> list[Motion]:
+    """The walk and jog clips among `clips`, at 30 fps on their own skeletons, cut to `frames`."""
+    return [m.resample(FPS)[:frames] for m in clips if m.action in GAITS]
+
+
 def _facing_positions(motions: list[Motion]) -> np.ndarray:
     """-> root-relative joint positions with each frame's heading turned to +Z (the pose alone), (N, T, J, 3)."""
     from course_lib.representations import root_yaw_pitch_roll
@@ -460,7 +522,9 @@ def eval_hvrnn(seed: int = 0, progress: bool = True, checkpoints: Path = CHECKPO
                mode: str | None = "full", models: dict | None = None, seeds: int = EVAL_SEEDS) -> dict:
     """Generate n_per samples per action x style with every shipped model, `seeds` times (generation seeds
     seed, seed + 1, ...), and score them -> JSON-able dict: "table2", "collapse", "apd" are means over the
-    seeds, "table2_sd", "collapse_sd", "apd_sd" their standard deviations, "per_seed" each run."""
+    seeds, "table2_sd", "collapse_sd", "apd_sd" their standard deviations, "per_seed" each run; "feet": each
+    model's `foot_quality` on n_per walk-or-jog samples of 4 s (`gait_samples`, as lesson 07 asks) and the held-out
+    walks and jogs' ("Real data"), with "feet_sd"."""
     from course_lib.evaluation import over_seeds
 
     t0 = time.perf_counter()
@@ -469,16 +533,19 @@ def eval_hvrnn(seed: int = 0, progress: bool = True, checkpoints: Path = CHECKPO
     labels = {name: spec.label for name, spec in model_specs().items()}
     real_test = to_motions(data["test"])
     real_train = to_motions(data["train"])
+    real_gaits = foot_quality(gait_mocap(data["test_clips"]))
     runs = []
     for s in range(seed, seed + seeds):
         generated = {labels[n]: to_motions(generate(m, n_per, SEQ_LEN, s)) for n, m in models.items()}
         runs.append(evaluate(generated, real_test, real_train, seed=s))
+        runs[-1]["feet"] = {labels[n]: foot_quality(gait_samples(m, n_per, seed=s)) for n, m in models.items()}
+        runs[-1]["feet"]["Real data"] = real_gaits
         print(f"hvrnn eval seed {s}: " + ", ".join(f"{k} FID {r['FID']:.0f}" for k, r in runs[-1]["table2"].items()),
               file=sys.stderr)
     out = dict(runs[0])  # thresholds, attribute and counts are the same in every run
-    for key in ("table2", "collapse", "apd"):
+    for key in ("table2", "collapse", "apd", "feet"):
         out[key], out[f"{key}_sd"] = over_seeds([r[key] for r in runs])
-    out["per_seed"] = {str(s): {k: r[k] for k in ("table2", "collapse", "apd")} for s, r in
+    out["per_seed"] = {str(s): {k: r[k] for k in ("table2", "collapse", "apd", "feet")} for s, r in
                        zip(range(seed, seed + seeds), runs, strict=True)}
     out["generation_seeds"] = list(range(seed, seed + seeds))
     out["eval_seconds"] = round(time.perf_counter() - t0, 1)
@@ -493,7 +560,7 @@ def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Pa
 
     t0 = time.perf_counter()
     data = load_data(mode)
-    dae, dae_hist = train_dae(max(2, int(300 * scale)), seed, mode, progress)
+    dae, dae_hist = train_dae(max(2, int(DAE_STEPS * scale)), seed, mode, progress)
     train = dict(data["train"], x=clean(dae, data["train"]["x"]))
     timings = {"data_and_dae_seconds": round(time.perf_counter() - t0, 1)}
     save_checkpoint(dae, dae.config, checkpoints / "hvrnn_dae.pt", command=COMMAND, overwrite=True,
@@ -504,12 +571,12 @@ def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Pa
     for name, spec in specs.items():
         if only and name not in only:
             continue
-        if name == "hvrnn_nc" and kept:  # NC = Proposed until lambda_CL turns on: continue from that state
+        if name == "hvrnn_nc" and kept and forkable(specs):  # NC = Proposed until lambda_CL turns on
             model, hist = continue_training(spec, kept, train, seed, progress)
             shared, curve = kept["seconds"], kept["curve"] + list(hist.step["loss"])
             metrics = {"forked_from": "hvrnn_proposed", "forked_at_step": kept["steps"]}
         else:
-            keep_at = specs["hvrnn_nc"].config.cl_start if name == "hvrnn_proposed" else None
+            keep_at = specs["hvrnn_nc"].config.cl_start if name == "hvrnn_proposed" and forkable(specs) else None
             model, hist = train_model(spec, train, classifiers, seed, progress, keep_at=keep_at)
             kept = hist.kept or kept
             shared, curve, metrics = 0.0, list(hist.step["loss"]), {}
