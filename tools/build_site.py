@@ -137,7 +137,8 @@ def landing_page(rows: list[dict], mode: str) -> str:
            "A Jupyter course that builds and reproduces four papers on human motion synthesis on a laptop CPU: the "
            "VAE-LSTM of Habibie et al. (lesson 02), the GMM-RNN with an adversarial refiner of Wang, Chai et al. "
            "(03, 04), the hierarchical VRNN of Ghorbani et al. (05) and MoGlow of Henter et al. (06), after the "
-           "foundations (00, 00b, 00c, 01), and compares them all in one benchmark (07). Each lesson page below is the executed notebook "
+           "foundations (00, 00b, 00c, 01), and compares them all in one benchmark (07). Each lesson page below "
+           "is the executed notebook "
            f"(`COURSE_MODE={mode}`); the notebooks themselves are in `notebooks/`, the student copies "
            "with the exercises to solve come from `make student`. Search is at the top left; it works offline.",
            "", "## The order of the lessons", "",
