@@ -7,9 +7,11 @@ Data: the actions dataset (walk, jog, jump, lift x styles A/B, one clip per subj
 style; 40 subjects) resampled to 30 fps, in ``quaternion_root``; each clip gives one sequence of
 ``SEQ_LEN`` = 90 frames (3 s) from its first frame, clips shorter than that (jumps, 2.6-3.2 s)
 padded by holding their last frame (the character stands still after landing), plus the
-left-right mirrored copies.  Split by subject: the last fifth of the subjects (s32-s39) is held
-out as the real reference of FID.  The shipped evaluation classifiers were trained on s00-s05
-(half of the classifiers' training subjects, `ClassifierData`); the classifiers of the loss
+left-right mirrored copies.  The root's velocities and height are retargeted to the canonical
+skeleton's legs (`retarget_root`): every sample is decoded on that skeleton.  Split by subject: the
+last fifth of the subjects (s32-s39) is held out as the real reference of FID.  The shipped
+evaluation classifiers were trained on s00-s05 (half of the classifiers' training subjects,
+`ClassifierData`); the classifiers of the loss
 L_CL (eq. 24) are trained here on s06-s31 and never used for evaluation, so that no model is
 optimised against the network that scores it.  The denoising autoencoder is trained on a
 different subset (the locomotion dataset) and applied to the training sequences.
