@@ -76,13 +76,13 @@ course: setup data
 	    $(PY) tools/lesson_time.py --record "$$nb" "$$secs" --mode $(COURSE_MODE); \
 	  else failed="$$failed $$nb"; rm -f "build/executed/$$(basename "$$nb")"; fi; \
 	done; \
-	$(PY) tools/build_site.py --notebooks build/executed --site site --work build/site --mode $(COURSE_MODE); \
+	$(PY) tools/build_site.py --notebooks build/executed --site site --work build/site --mode $(COURSE_MODE) --demo; \
 	if [ -n "$$failed" ]; then echo "course: FAILED (not in the site):$$failed" >&2; exit 1; fi
 	@# its own line: make runs a line that names $(MAKE) even under `make -n`
 	@$(MAKE) --no-print-directory demo
 
 site: setup
-	$(PY) tools/build_site.py --notebooks notebooks --site site --work build/site --mode ci
+	$(PY) tools/build_site.py --notebooks notebooks --site site --work build/site --mode ci --demo
 	@$(MAKE) --no-print-directory demo
 
 # The browser demo (web/, lesson 06): the pretrained MoGlow step as ONNX, bundled with onnxruntime-web and

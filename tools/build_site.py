@@ -131,7 +131,7 @@ def extra_pages() -> list[Path]:
     return sorted((CONF_DIR / "pages").glob("*.md"))
 
 
-def landing_page(rows: list[dict], mode: str) -> str:
+def landing_page(rows: list[dict], mode: str, demo: bool = False) -> str:
     """index.md (MyST) for the given lessons: a hidden toctree for the navigation, one section per lesson."""
     out = ["# Data-driven human motion synthesis", "",
            "A Jupyter course that builds and reproduces four papers on human motion synthesis on a laptop CPU: the "
@@ -143,13 +143,16 @@ def landing_page(rows: list[dict], mode: str) -> str:
            "with the exercises to solve come from `make student`. Search is at the top left; it works offline.",
            "", "## The order of the lessons", "",
            "Each lesson names its prerequisites in its header; an arrow points from a lesson to one that needs it.",
-           "", "![The lessons' dependency graph](lesson_graph.png)", "",
-           "## Steer the model in your browser", "",
-           "Lesson 06's pretrained MoGlow runs in a web page, offline: arrow keys or WASD set the speed and turn "
-           "(<a href=\"demo/index.html\">open the demo</a>; `make site` and `make course` build it into "
-           "`site/demo/`; `make serve` serves the site at http://localhost:8000).", "",
-           "![The demo page after its self-test (?selftest=1)](demo_page.png)", "",
-           "```{toctree}", ":hidden:", ":maxdepth: 1", ""]
+           "", "![The lessons' dependency graph](lesson_graph.png)", ""]
+    if demo:  # make site / make course build site/demo/ right after (make demo)
+        out += [
+            "## Steer the model in your browser", "",
+            "Lesson 06's pretrained MoGlow runs in a web page, offline: arrow keys or WASD set the speed and turn "
+            "(<a href=\"demo/index.html\">open the demo</a>; `make site` and `make course` build it into "
+            "`site/demo/`; `make serve` serves the site at http://localhost:8000).", "",
+            "![The demo page after its self-test (?selftest=1)](demo_page.png)", "",
+        ]
+    out += ["```{toctree}", ":hidden:", ":maxdepth: 1", ""]
     out += [r["name"] for r in rows] + list(study_pages()) + [page.stem for page in extra_pages()] + ["```", ""]
     for r in rows:
         out += [f"## {r['title']}", "", f"{{doc}}`Open the lesson <{r['name']}>` (`{r['name']}.ipynb`)", ""]
@@ -190,7 +193,7 @@ def copy_mathjax(static_dir: Path) -> Path:
 # ----------------------------------------------------------------------------- the build
 
 
-def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
+def prepare_source(notebooks: list[Path], src: Path, mode: str, demo: bool = False) -> list[dict]:
     """Fill src/ with the notebooks and the landing page -> the lessons' info."""
     shutil.rmtree(src, ignore_errors=True)
     src.mkdir(parents=True)
@@ -202,15 +205,16 @@ def prepare_source(notebooks: list[Path], src: Path, mode: str) -> list[dict]:
         shutil.copy2(page, src / page.name)
     for name, text in study_pages().items():
         (src / f"{name}.md").write_text(text, encoding="utf-8")
-    (src / "index.md").write_text(landing_page(rows, mode), encoding="utf-8")
+    (src / "index.md").write_text(landing_page(rows, mode, demo), encoding="utf-8")
     lesson_graph.draw(lesson_graph.graph(notebooks), src / "lesson_graph.png")
-    shutil.copy2(CONF_DIR / "_static" / "demo_page.png", src / "demo_page.png")  # a screenshot of site/demo/
+    if demo:
+        shutil.copy2(CONF_DIR / "_static" / "demo_page.png", src / "demo_page.png")  # a screenshot of site/demo/
     return rows
 
 
-def build(notebooks: list[Path], site: Path, mode: str, work: Path) -> list[dict]:
+def build(notebooks: list[Path], site: Path, mode: str, work: Path, demo: bool = False) -> list[dict]:
     """sphinx-build the notebooks into site/ (html), MathJax included -> the lessons' info."""
-    rows = prepare_source(notebooks, work / "src", mode)
+    rows = prepare_source(notebooks, work / "src", mode, demo)
     html = work / "html"  # MyST-NB writes its jupyter_execute/ beside the output folder: keep both in work/
     cmd = [sys.executable, "-m", "sphinx", "-b", "html", "-q", "-c", str(CONF_DIR), "-d", str(work / "doctrees"),
            str(work / "src"), str(html)]
@@ -227,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mode", default="ci", help="COURSE_MODE the notebooks were executed in")
     parser.add_argument("--work", type=Path, default=Path("build/site"), help="Sphinx source and cache folder")
     parser.add_argument("--only", nargs="*", help="lesson names to include (default: every [0-9]*.ipynb)")
+    parser.add_argument("--demo", action="store_true", help="link the browser demo (make demo builds site/demo/)")
     args = parser.parse_args(argv)
     if not args.notebooks.is_dir():
         parser.error(f"--notebooks {args.notebooks} is not a folder")
@@ -239,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
     if not notebooks:
         parser.error(f"no lesson notebooks in {args.notebooks}")
     start = time.perf_counter()
-    rows = build(notebooks, args.site, args.mode, args.work)
+    rows = build(notebooks, args.site, args.mode, args.work, args.demo)
     print(f"build_site: {args.site}/index.html, {len(rows)} lessons, MathJax served from "
           f"{args.site}/_static/mathjax ({time.perf_counter() - start:.0f} s)")
     return 0
