@@ -25,6 +25,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tools"))
+import lesson_graph as LG  # noqa: E402
 import lesson_time as LT  # noqa: E402
 
 NOTEBOOKS = sorted((REPO / "notebooks").glob("[0-9]*.ipynb"))
@@ -134,18 +135,9 @@ def exercise_problems(nb: dict) -> list[str]:
     return problems
 
 
-PREREQ = re.compile(r"\*\*Prerequisites:\*\*([^\n]*)")
-LESSON_REF = re.compile(r"\b(\d\d[a-z]?)\b")
-
-
 def prerequisites(nb: dict) -> list[str] | None:
     """Lesson numbers the header's **Prerequisites:** line names (None when the line is missing)."""
-    m = PREREQ.search(src(nb["cells"][0])) if nb["cells"] else None
-    return None if m is None else LESSON_REF.findall(m.group(1))
-
-
-def lesson_id(path: Path) -> str:
-    return path.name.split("_")[0]
+    return LG.prerequisites_of(src(nb["cells"][0])) if nb["cells"] else None
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
@@ -178,10 +170,10 @@ def test_header_names_earlier_lessons_and_a_measured_time(path):
     nb = load(path)
     prereq = prerequisites(nb)
     assert prereq is not None, f"{path.name}: no **Prerequisites:** line in the header"
-    ids = [lesson_id(p) for p in NOTEBOOKS]
+    ids = [LG.lesson_id(p) for p in NOTEBOOKS]
     for ref in prereq:
         assert ref in ids, f"{path.name}: prerequisite {ref} is not a lesson"
-        assert ids.index(ref) < ids.index(lesson_id(path)), f"{path.name}: prerequisite {ref} comes later"
+        assert ids.index(ref) < ids.index(LG.lesson_id(path)), f"{path.name}: prerequisite {ref} comes later"
     head = LT.header_minutes(nb)
     assert head is not None, f"{path.name}: no '**Time:** about N hours|minutes' line in the header"
     run = LT.recorded_seconds(path.stem)
@@ -267,9 +259,9 @@ def test_readme_lists_each_lessons_prerequisites_and_time_as_the_headers_say():
         if len(cells) >= 5 and re.fullmatch(r"\d\d[a-z]?", cells[0]):
             rows[cells[0]] = cells
     for path in NOTEBOOKS:
-        lesson = lesson_id(path)
+        lesson = LG.lesson_id(path)
         assert lesson in rows, f"README.md has no row for lesson {lesson}"
-        needs = LESSON_REF.findall(rows[lesson][2])
+        needs = LG.LESSON_REF.findall(rows[lesson][2])
         assert needs == prerequisites(load(path)), \
             f"README.md says lesson {lesson} needs {needs}; its header says {prerequisites(load(path))}"
         run = LT.recorded_seconds(path.stem)
