@@ -58,7 +58,7 @@ def exercise_cells(nb: dict) -> list[int]:
 def exercise_kind(text: str) -> str | None:
     """'derivation', 'prediction' or 'design' when the exercise's heading says so, else None."""
     m = EXERCISE.search(text)
-    kind = re.search(r"\((derivation|prediction|design)\b", m.group(2)) if m else None
+    kind = re.search(rf"\(({'|'.join(KINDS)})\b", m.group(2)) if m else None
     return kind.group(1) if kind else None
 
 
