@@ -122,7 +122,8 @@ def test_feet_anchored_rnn_round_trip_and_one_step(setup):
 
 
 def test_skate_study_measures_one_model(setup):
-    """study gmm_rnn_skate (the RNN foot-skate study behind the shipped recipe): every number of one model."""
+    """study gmm_rnn_skate (what the recipe's residual means and feet-anchored features do): every number of one
+    model."""
     study = load_study("gmm_rnn_skate")
     clips, ds, *_ = setup
     spec = X.Lesson03Spec(eval_seconds=2.0, n_random=4, random_seconds=3.0, rnn_steps=3, sample_angle_noise=0.3)
@@ -131,7 +132,8 @@ def test_skate_study_measures_one_model(setup):
     for k in ("one_step_sample_skate", "one_step_mean_skate", "free_skate", "free_jitter", "free_fid"):
         assert np.isfinite(res[k]) and res[k] >= 0, k
     assert res["long"]["nan_motions"] == 0 and 0 <= res["long"]["in_range_motions"] <= 4
-    assert set(study.VARIANTS) >= {"before", "anchored", "anchored_noise01", "noise01_angles_03"}
+    assert set(study.VARIANTS) == {"paper_features_absolute", "paper_features_residual", "anchored_absolute",
+                                  "anchored_residual"}
 
 
 def test_training_limits_bound_the_training_angles_only(setup):

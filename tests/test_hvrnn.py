@@ -311,7 +311,7 @@ def test_fixed_dofs_of_the_data_are_set_in_every_generator_output():
 
 
 def test_recipe_sweep_tool_runs_one_variant(tmp_path):
-    """study hvrnn_sweep (the search behind the shipped training length): a few steps, every number."""
+    """study hvrnn_sweep (the seed spread of the four Motion-Cell models): a few steps, every number."""
     import json
 
     sweep = load_study("hvrnn_sweep")
