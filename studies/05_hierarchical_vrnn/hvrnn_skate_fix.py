@@ -23,7 +23,7 @@ from course_lib import benchmark as bench
 from course_lib.experiments import hvrnn as lesson05
 from course_lib.results import rounded, write_study_result
 
-# name -> (retarget the root to the canonical legs, steps, overrides: the config's, "batch", "dae_steps")
+# name -> (retarget the root to the canonical legs, steps, overrides: the config's, "batch", "dae_steps", "lr_end")
 VARIANTS = {
     "before": (False, 1200, {"dae_steps": 300}),  # the recipe before the fix (measured by lesson 07's benchmark)
     "retarget": (True, 1200, {"dae_steps": 300}),
@@ -31,6 +31,9 @@ VARIANTS = {
     "retarget_drop06": (True, 1200, {"drop_max": 0.6, "dae_steps": 300}),  # the paper: word dropping "helps
     # with the problem of foot skating"
     "retarget_b64_2400": (True, 2400, {"batch": 64, "dae_steps": 300}),  # the paper's batch of 64
+    # the pretrained recipe (retargeting, the 1875-step DAE, 3600 steps) with the rate decayed over the second half
+    "lr_decay": (True, 3600, {"lr_end": 0.1}),
+    "lr_decay_5400": (True, 5400, {"lr_end": 0.1}),
 }
 SHIPPED = "shipped"  # the pretrained checkpoints/hvrnn_proposed.pt, trained by `python -m course_lib.reproduce hvrnn`
 
@@ -43,8 +46,8 @@ def train_variant(retarget: bool, steps: int, overrides: dict, seed: int = 0):
     train = dict(data["train"], x=lesson05.clean(dae, data["train"]["x"]))
     classifiers = lesson05.train_loss_classifiers(train, 300, seed)
     spec = lesson05.model_specs(steps / lesson05.PROPOSED_STEPS)["hvrnn_proposed"]
-    batch = overrides.pop("batch", spec.batch)
-    spec = dataclasses.replace(spec, batch=batch, config=dataclasses.replace(spec.config, **overrides))
+    batch, lr_end = overrides.pop("batch", spec.batch), overrides.pop("lr_end", spec.lr_end)
+    spec = dataclasses.replace(spec, batch=batch, lr_end=lr_end, config=dataclasses.replace(spec.config, **overrides))
     model, hist = lesson05.train_model(spec, train, classifiers, seed)
     return model, data, hist.seconds
 
