@@ -2,7 +2,8 @@
 `python -m course_lib.reproduce hvrnn` trains the Proposed model (same data, DAE, loss classifiers, seed 0) and
 measured three ways: lesson 07's benchmark protocol (walk or jog samples, 5 generation seeds, the first 0.5 s
 dropped, foot skate with the known floor), the teacher-forced reconstruction of the held-out walks and jogs,
-and the legs' sweep against the root's speed on the samples' stance frames.
+and the legs' sweep against the root's speed on the samples' stance frames.  The "shipped_z_T*" rows sample the
+pretrained model with its prior's sd scaled (TEMPERATURES), no training.
 
     OMP_NUM_THREADS=1 python studies/05_hierarchical_vrnn/hvrnn_skate_fix.py \\
         --out studies/05_hierarchical_vrnn/hvrnn_skate_fix_results.json [--only NAME ...] [--merge]
@@ -36,6 +37,20 @@ VARIANTS = {
     "lr_decay_5400": (True, 5400, {"lr_end": 0.1}),
 }
 SHIPPED = "shipped"  # the pretrained checkpoints/hvrnn_proposed.pt, trained by `python -m course_lib.reproduce hvrnn`
+# the pretrained model sampling z with its prior's sd scaled by T (eq. 12 at a temperature; 1 = the paper's)
+TEMPERATURES = {"shipped_z_T0.5": 0.5, "shipped_z_T0": 0.0}
+
+
+class TemperedPrior(torch.nn.Module):
+    """p(z_t | h_{t-1}) with its sd multiplied by ``temperature``: wraps a model's ``prior``."""
+
+    def __init__(self, prior: torch.nn.Module, temperature: float):
+        super().__init__()
+        self.inner, self.temperature = prior, temperature
+
+    def forward(self, x):
+        mu, sd = self.inner(x)
+        return mu, sd * self.temperature
 
 
 def train_variant(retarget: bool, steps: int, overrides: dict, seed: int = 0):
@@ -111,7 +126,7 @@ def teacher_forced(model, data: dict) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--only", nargs="*", default=None, choices=sorted([*VARIANTS, SHIPPED]))
+    parser.add_argument("--only", nargs="*", default=None, choices=sorted([*VARIANTS, SHIPPED, *TEMPERATURES]))
     parser.add_argument("--merge", action="store_true", help="add to the rows already in --out")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
@@ -124,10 +139,13 @@ def main(argv=None) -> int:
         mocap[s] = bench.quality(bench.Sample(proto.truth[b], proto.skeletons(b)), [], s, distribution=False)
     result["mocap_benchmark"] = {k: float(np.mean([r[k] for r in mocap.values()]))
                                  for k in ("foot_skate", "penetration", "jitter")}
-    for name in args.only or [*VARIANTS, SHIPPED]:
-        if name == SHIPPED:  # no training: the pretrained model, on the data as the reproduction prepares it
+    for name in args.only or [*VARIANTS, SHIPPED, *TEMPERATURES]:
+        if name == SHIPPED or name in TEMPERATURES:  # no training: the pretrained model, on the reproduction's data
             model, data = lesson05.load_model("hvrnn_proposed"), lesson05.load_data("full")
             row = {"retarget": lesson05.RETARGET, "steps": lesson05.PROPOSED_STEPS, "dae_steps": lesson05.DAE_STEPS}
+            if name in TEMPERATURES:
+                model.prior = TemperedPrior(model.prior, TEMPERATURES[name])
+                row["z_temperature"] = TEMPERATURES[name]
         else:
             retarget, steps, overrides = VARIANTS[name]
             model, data, seconds = train_variant(retarget, steps, overrides)
@@ -138,7 +156,7 @@ def main(argv=None) -> int:
         result["variants"][name] = rounded(row, 4)
         print(name, json.dumps(result["variants"][name]), file=sys.stderr, flush=True)
         write_study_result(args.out, result, checkpoints=[lesson05.CHECKPOINTS / "hvrnn_proposed.pt"]
-                           if name == SHIPPED else [])
+                           if name == SHIPPED or name in TEMPERATURES else [])
     return 0
 
 
