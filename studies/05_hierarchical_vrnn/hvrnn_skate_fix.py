@@ -35,6 +35,8 @@ VARIANTS = {
     # the pretrained recipe (retargeting, the 1875-step DAE, 3600 steps) with the rate decayed over the second half
     "lr_decay": (True, 3600, {"lr_end": 0.1}),
     "lr_decay_5400": (True, 5400, {"lr_end": 0.1}),
+    # ... and twice the word dropping (the paper's remedy for exposure bias, which "helps with foot skating")
+    "lr_decay_drop06": (True, 3600, {"lr_end": 0.1, "drop_max": 0.6}),
 }
 SHIPPED = "shipped"  # the pretrained checkpoints/hvrnn_proposed.pt, trained by `python -m course_lib.reproduce hvrnn`
 # the pretrained model sampling z with its prior's sd scaled by T (eq. 12 at a temperature; 1 = the paper's)
