@@ -36,7 +36,7 @@ from course_lib.checksums import sha256_file
 from course_lib.manifest import VERIFIED, entry_name, locked, manifest_path, read_manifest, replace_text
 from course_lib.paths import CHECKPOINTS, REPO_ROOT
 
-__all__ = ["checkpoint_metrics", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
+__all__ = ["checkpoint_metrics", "git_commit", "provenance", "read_results", "record_checkpoint_metrics", "recorded",
            "results_file", "results_folder", "results_name", "rounded", "studies_folder", "study_result",
            "update_results", "write_study_result"]
 
@@ -62,13 +62,9 @@ def study_result(name: str) -> dict:
     return json.loads(found[0].read_text())
 
 
-def provenance(checkpoints=None, argv=None) -> dict:
-    """What a study records about itself, to merge into the JSON it writes (``{**result, **provenance()}``): the
-    command that ran it (``argv``, default sys.argv), the repository's commit (with "+changes" when tracked files
-    differ from it) and the sha256 of each checkpoint file it used: ``checkpoints`` (paths), default every file
-    this process loaded through a verified load (`manifest.VERIFIED`: checkpoints and their statistics)."""
-    root = Path(__file__).resolve().parents[1]
-
+def git_commit(root: Path) -> str:
+    """The commit of the git checkout at ``root``, with "+changes" when tracked files differ from it (a change to
+    a study's result JSON does not count: it is another study's output, not an input of this run)."""
     def git(*args):
         try:
             return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=30).stdout.strip()
@@ -76,8 +72,19 @@ def provenance(checkpoints=None, argv=None) -> dict:
             return ""
 
     commit = git("rev-parse", "HEAD") or "unknown (not a git checkout)"
-    if commit[:1] != "u" and git("status", "--porcelain", "--untracked-files=no"):
+    if commit[:1] != "u" and git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                                 ":(exclude)studies/*/*.json"):
         commit += "+changes"
+    return commit
+
+
+def provenance(checkpoints=None, argv=None) -> dict:
+    """What a study records about itself, to merge into the JSON it writes (``{**result, **provenance()}``): the
+    command that ran it (``argv``, default sys.argv), the repository's commit (`git_commit`) and the sha256 of
+    each checkpoint file it used: ``checkpoints`` (paths), default every file this process loaded through a
+    verified load (`manifest.VERIFIED`: checkpoints and their statistics)."""
+    root = Path(__file__).resolve().parents[1]
+    commit = git_commit(root)
     argv = list(sys.argv if argv is None else argv)
     script = Path(argv[0]) if argv else Path("?")
     if script.is_absolute() and root in script.parents:

@@ -358,3 +358,16 @@ def test_retargeted_root_plants_a_short_legged_walk_on_the_canonical_legs():
     assert foot_skate_at_floor(plain, fps=FPS) > own + 0.05  # short legs' stride and hip height on longer legs
     assert foot_quality(plain)["penetration"] > 0.02
     assert foot_quality(fixed)["foot_skate"] < own + 0.02 and foot_quality(fixed)["penetration"] < 1e-3
+
+
+def test_lr_factor_is_constant_then_a_cosine_down_to_lr_end():
+    """Known answers: lr_end 1 keeps Adam's rate (the paper); lr_end 0.1 keeps it for the first half, is halfway
+    down (0.55) at three quarters and 0.1 at the last step."""
+    from course_lib.experiments.hvrnn import ModelSpec, lr_factor
+
+    const = ModelSpec("m", "M", object, None, steps=101)
+    assert all(lr_factor(const, k) == 1.0 for k in range(101))
+    decay = dataclasses.replace(const, lr_end=0.1)
+    assert [lr_factor(decay, k) for k in (0, 49, 50)] == [1.0, 1.0, 1.0]
+    assert lr_factor(decay, 75) == pytest.approx(0.55)
+    assert lr_factor(decay, 100) == pytest.approx(0.1)

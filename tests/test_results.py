@@ -138,6 +138,34 @@ def test_the_refiners_were_trained_with_the_recorded_balance_band(repo_root):
             assert replay(history["d_loss"], 0.01, 1.0) != history["r_updates"], file
 
 
+def test_git_commit_marks_changed_inputs_but_not_a_study_result(tmp_path):
+    """Known answers in a throw-away repository: a clean tree gives the bare commit; a changed study result JSON
+    (another study's output) still does; a changed module or a changed results/ file adds "+changes"."""
+    import subprocess
+
+    from course_lib.results import git_commit
+
+    def run(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    for rel in ("studies/06_moglow/a_results.json", "course_lib/m.py", "results/moglow.json"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("0\n")
+    run("init", "-q")
+    run("add", ".")
+    run("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "x")
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=tmp_path, capture_output=True, text=True).stdout.strip()
+    assert git_commit(tmp_path) == head
+    (tmp_path / "studies/06_moglow/a_results.json").write_text("1\n")
+    assert git_commit(tmp_path) == head
+    for rel in ("course_lib/m.py", "results/moglow.json"):
+        (tmp_path / rel).write_text("1\n")
+        assert git_commit(tmp_path) == head + "+changes", rel
+        run("checkout", "-q", "--", rel)
+    assert git_commit(tmp_path / "course_lib").startswith(head)  # from a folder inside the checkout
+    assert git_commit(tmp_path.parent / "nowhere").startswith("unknown")
+
+
 def test_provenance_records_the_command_the_commit_and_every_verified_file(tmp_path):
     from course_lib.datasets import load_stats
     from course_lib.results import provenance

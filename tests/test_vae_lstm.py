@@ -378,6 +378,26 @@ def test_ten_bodies_study_runs(tmp_path):
     assert {"algorithm1", "per_step", "data_matched_control_apd_m"} <= set(out["prior_diversity"])
 
 
+def test_z1_study_runs(tmp_path):
+    """study vae_lstm_z1: 30 clips, 3 steps of one remedy; the pretrained row and the variant's are scored with
+    both samplers as the lesson's, and with the lesson's own sampler the checks are must_show's."""
+    import json
+
+    from course_lib.experiments.vae_lstm import SAMPLER, must_show
+
+    tool = load_study("vae_lstm_z1")
+    out = tool.run(smoke=True, only=["free_bits"], out_path=tmp_path / "r.json")
+    rec = json.loads((tmp_path / "r.json").read_text())
+    assert rec["command"] and set(rec["rows"]) == {"pretrained", "free_bits"}
+    for row in out["rows"].values():
+        assert set(row["checks"]) == {"algorithm1", "per_step"} and len(row["checks"]["algorithm1"]) == 10
+        own = must_show(row)  # on the rounded numbers the file keeps
+        assert set(row["checks"][SAMPLER]) == set(own)
+        for k, (v, b, _) in own.items():
+            assert row["checks"][SAMPLER][k][:2] == pytest.approx([v, b], rel=1e-3, abs=1e-5), k
+        assert row["targets_held"]["algorithm1"] == sum(c[2] for c in row["checks"]["algorithm1"].values())
+
+
 def test_control_obs_std_narrows_the_control_channels_only():
     """control_obs_std: the last 3 features get their own likelihood std; the 63 pose features keep obs_std."""
     torch.manual_seed(6)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 import sys
 import time
 from pathlib import Path
@@ -222,6 +223,25 @@ class ModelSpec:
     config: object
     steps: int
     batch: int = 32  # Ghorbani: 64 (halved for the CPU budget)
+    lr_end: float = 1.0  # the learning rate's factor at the last step, cosine from 1 over the second half (1: constant)
+
+
+def lr_factor(spec: ModelSpec, step: int) -> float:
+    """The factor on Adam's 1e-3 for optimiser step ``step`` (0-based) of a run of spec.steps: 1 in the first half,
+    then a cosine down to spec.lr_end at the last step."""
+    half = spec.steps // 2
+    if spec.lr_end == 1.0 or step < half:
+        return 1.0
+    t = (step - half) / max(1, spec.steps - 1 - half)
+    return spec.lr_end + (1.0 - spec.lr_end) * 0.5 * (1.0 + math.cos(math.pi * min(t, 1.0)))
+
+
+def _set_lr(spec: ModelSpec, offset: int = 0):
+    """A `fit` callback that sets the learning rate of the next step by `lr_factor` (``offset``: steps run before)."""
+    def callback(info):
+        for group in info.optimizer.param_groups:
+            group["lr"] = 1e-3 * lr_factor(spec, offset + info.step)
+    return callback
 
 
 def model_specs(scale: float = 1.0) -> dict[str, ModelSpec]:
@@ -234,16 +254,17 @@ def model_specs(scale: float = 1.0) -> dict[str, ModelSpec]:
         return max(2, int(fraction * STEPS * scale))
 
     # lambda_KL: 0 for the first 1/12, to 1 by half-way; lambda_CL from half-way, to its final value by 11/12;
-    # word dropping to drop_max by 2/3 (600-step runs left free-running samples far from the data: FID 5617 vs
-    # 1611 at 1200 steps, teacher-forced reconstructions 107 vs 34, measured by one run each of the Proposed)
+    # word dropping to drop_max by 2/3.  The Proposed model drops up to 0.6 of its words (the ablations 0.3) and
+    # decays its rate over the second half (lr_end): together they plant its free-running feet
+    # (studies/05_hierarchical_vrnn, hvrnn_skate_fix)
     def schedules(k):  # the same fractions of a run of k x STEPS steps
         return dict(kl_warmup=s(k / 12), kl_anneal=s(5 * k / 12), cl_start=s(k / 2), cl_ramp=s(5 * k / 12),
                     drop_ramp=s(2 * k / 3))
 
     sched, k = schedules(1), PROPOSED_STEPS / STEPS
     specs = [
-        ModelSpec("hvrnn_proposed", "Proposed", HierarchicalVrnn, HvrnnConfig.cpu(**schedules(k)), s(k),
-                  PROPOSED_BATCH),
+        ModelSpec("hvrnn_proposed", "Proposed", HierarchicalVrnn, HvrnnConfig.cpu(drop_max=0.6, **schedules(k)),
+                  s(k), PROPOSED_BATCH, lr_end=0.1),
         ModelSpec("hvrnn_sl", "Proposed(SL)", HierarchicalVrnn, HvrnnConfig.cpu(hierarchical=False, **sched), s(1)),
         ModelSpec("hvrnn_nl", "Proposed(NL)", HierarchicalVrnn, HvrnnConfig.cpu(use_alpha=False, **sched), s(1)),
         ModelSpec("hvrnn_nc", "Proposed(NC)", HierarchicalVrnn, HvrnnConfig.cpu(lambda_cl=0.0, **sched), s(1)),
@@ -256,7 +277,7 @@ def model_specs(scale: float = 1.0) -> dict[str, ModelSpec]:
 
 def train_model(spec: ModelSpec, train: dict, classifiers: list, seed: int = 0, progress: bool = False,
                 keep_at: int | None = None):
-    """Adam 1e-3, gradient-norm clip 0.1 (Ghorbani sec. 4.2) -> (model, History).
+    """Adam 1e-3, gradient-norm clip 0.1 (Ghorbani sec. 4.2), the rate scaled by `lr_factor` -> (model, History).
 
     keep_at: after that many steps, keep the whole training state (weights, optimiser, torch's RNG) in
     ``hist.kept`` for `continue_training`: the ablation NC is the Proposed model until lambda_CL turns on."""
@@ -269,14 +290,17 @@ def train_model(spec: ModelSpec, train: dict, classifiers: list, seed: int = 0, 
         model.set_classifiers(classifiers)
     kept, t0 = {}, time.perf_counter()
 
-    def keep(info):
+    set_lr = _set_lr(spec)
+
+    def on_step(info):
+        set_lr(info)
         if info.step == keep_at:
             kept.update(steps=info.step, state=copy.deepcopy(info.model.state_dict()), rng=torch.get_rng_state(),
                         optimizer=copy.deepcopy(info.optimizer.state_dict()), seconds=time.perf_counter() - t0,
                         curve=list(info.history.step["loss"]))
 
     hist = fit(model, batches(train, spec.batch, seed), steps=spec.steps, lr=1e-3, grad_clip=0.1, progress=progress,
-               desc=spec.name, callback=keep if keep_at else None)
+               desc=spec.name, callback=on_step)
     hist.kept = kept
     return model.eval(), hist
 
@@ -286,7 +310,7 @@ def forkable(specs: dict) -> bool:
     that `continue_training` can fork it from the Proposed run's state."""
     p, nc = specs["hvrnn_proposed"], specs["hvrnn_nc"]
     return (nc.config == dataclasses.replace(p.config, lambda_cl=0.0) and nc.steps == p.steps
-            and nc.batch == p.batch)
+            and nc.batch == p.batch and nc.lr_end == p.lr_end)
 
 
 def continue_training(spec: ModelSpec, kept: dict, train: dict, seed: int = 0, progress: bool = False):
@@ -302,7 +326,8 @@ def continue_training(spec: ModelSpec, kept: dict, train: dict, seed: int = 0, p
         next(data)
     torch.set_rng_state(kept["rng"])
     hist = fit(model, data, steps=spec.steps - kept["steps"], lr=1e-3, grad_clip=0.1, progress=progress,
-               desc=f"{spec.name} (from step {kept['steps']})", optimizer_state=kept["optimizer"])
+               desc=f"{spec.name} (from step {kept['steps']})", optimizer_state=kept["optimizer"],
+               callback=_set_lr(spec, kept["steps"]))
     return model.eval(), hist
 
 
@@ -583,7 +608,8 @@ def train_hvrnn(seed: int = 0, progress: bool = True, only=None, checkpoints: Pa
             kept = hist.kept or kept
             shared, curve, metrics = 0.0, list(hist.step["loss"]), {}
         timings[name] = round(shared + hist.seconds, 1)  # NC: its share of the Proposed run + its own steps
-        metrics.update({"train_seconds": timings[name], "steps": len(curve),
+        metrics.update({"train_seconds": timings[name], "steps": len(curve), "batch": spec.batch,
+                        "lr": 1e-3, "lr_end": spec.lr_end,
                         "final_loss": round(hist.final("loss", 20), 6), "final_rec": round(hist.final("rec", 20), 6),
                         "train_sequences": len(train["x"]), "seq_len": SEQ_LEN, "train_seed": seed,
                         "curve": [round(float(v), 4) for v in curve[:: max(1, len(curve) // 100)]]})

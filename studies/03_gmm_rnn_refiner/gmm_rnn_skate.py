@@ -10,7 +10,8 @@ the shipped checkpoint (width 256) measured as it is:
 
     python studies/03_gmm_rnn_refiner/gmm_rnn_skate.py --out studies/03_gmm_rnn_refiner/gmm_rnn_skate_results.json --shipped --only paper_features_absolute paper_features_residual anchored_absolute anchored_residual
 
-Rows are merged into --out (one entry per variant, each with the provenance of the run that made it).  One
+Rows are merged into --out (one entry per variant, each with the provenance of the run that made it); the
+file's own command, commit and checkpoints' sha256 are those of its last whole run (every row).  One
 training at a time, one thread; nothing is written to checkpoints/.
 """
 
@@ -115,7 +116,8 @@ def main(argv=None) -> None:
         res["eval_seconds"] = time.perf_counter() - t0 - (res["train_seconds"] or 0)
         key = name if not a.seed else f"{name}, seed {a.seed}"
         results[key] = {**rounded(res, 4), **provenance()}  # the run that added this row
-        results.update(provenance())  # the file's last run
+        if a.shipped and set(a.only) == set(VARIANTS):  # a whole run: the command that regenerates the file
+            results.update(provenance())
         a.out.write_text(json.dumps(results, indent=1) + "\n")
         print(key, json.dumps(results[key]), flush=True)
 

@@ -2,7 +2,8 @@
 `python -m course_lib.reproduce hvrnn` trains the Proposed model (same data, DAE, loss classifiers, seed 0) and
 measured three ways: lesson 07's benchmark protocol (walk or jog samples, 5 generation seeds, the first 0.5 s
 dropped, foot skate with the known floor), the teacher-forced reconstruction of the held-out walks and jogs,
-and the legs' sweep against the root's speed on the samples' stance frames.
+and the legs' sweep against the root's speed on the samples' stance frames.  The "shipped_z_T*" rows sample the
+pretrained model with its prior's sd scaled (TEMPERATURES), no training.
 
     OMP_NUM_THREADS=1 python studies/05_hierarchical_vrnn/hvrnn_skate_fix.py \\
         --out studies/05_hierarchical_vrnn/hvrnn_skate_fix_results.json [--only NAME ...] [--merge]
@@ -23,7 +24,7 @@ from course_lib import benchmark as bench
 from course_lib.experiments import hvrnn as lesson05
 from course_lib.results import rounded, write_study_result
 
-# name -> (retarget the root to the canonical legs, steps, overrides: the config's, "batch", "dae_steps")
+# name -> (retarget the root to the canonical legs, steps, overrides: the config's, "batch", "dae_steps", "lr_end")
 VARIANTS = {
     "before": (False, 1200, {"dae_steps": 300}),  # the recipe before the fix (measured by lesson 07's benchmark)
     "retarget": (True, 1200, {"dae_steps": 300}),
@@ -31,20 +32,42 @@ VARIANTS = {
     "retarget_drop06": (True, 1200, {"drop_max": 0.6, "dae_steps": 300}),  # the paper: word dropping "helps
     # with the problem of foot skating"
     "retarget_b64_2400": (True, 2400, {"batch": 64, "dae_steps": 300}),  # the paper's batch of 64
+    # the pretrained recipe (retargeting, the 1875-step DAE, 3600 steps) with the rate decayed over the second half
+    "lr_decay": (True, 3600, {"lr_end": 0.1}),
+    "lr_decay_5400": (True, 5400, {"lr_end": 0.1}),
+    # ... and twice the word dropping (the paper's remedy for exposure bias, which "helps with foot skating"): the
+    # recipe `python -m course_lib.reproduce hvrnn` now trains
+    "lr_decay_drop06": (True, 3600, {"lr_end": 0.1, "drop_max": 0.6}),
 }
+BASE = {"drop_max": 0.3, "lr_end": 1.0}  # the recipe before this study: words dropped up to 0.3, a constant rate
 SHIPPED = "shipped"  # the pretrained checkpoints/hvrnn_proposed.pt, trained by `python -m course_lib.reproduce hvrnn`
+# the pretrained model sampling z with its prior's sd scaled by T (eq. 12 at a temperature; 1 = the paper's)
+TEMPERATURES = {"shipped_z_T0.5": 0.5, "shipped_z_T0": 0.0}
+
+
+class TemperedPrior(torch.nn.Module):
+    """p(z_t | h_{t-1}) with its sd multiplied by ``temperature``: wraps a model's ``prior``."""
+
+    def __init__(self, prior: torch.nn.Module, temperature: float):
+        super().__init__()
+        self.inner, self.temperature = prior, temperature
+
+    def forward(self, x):
+        mu, sd = self.inner(x)
+        return mu, sd * self.temperature
 
 
 def train_variant(retarget: bool, steps: int, overrides: dict, seed: int = 0):
-    """-> (model, seconds): the Proposed recipe of `lesson05.model_specs`, scaled to `steps`, with `overrides`."""
-    overrides = dict(overrides)
+    """-> (model, seconds): the Proposed recipe of `lesson05.model_specs`, scaled to `steps`, with the study's base
+    (BASE: the recipe it started from) and then `overrides`."""
+    overrides = {**BASE, **overrides}
     data = lesson05.load_data("full", retarget=retarget)
     dae, _ = lesson05.train_dae(overrides.pop("dae_steps", lesson05.DAE_STEPS), seed, "full", retarget=retarget)
     train = dict(data["train"], x=lesson05.clean(dae, data["train"]["x"]))
     classifiers = lesson05.train_loss_classifiers(train, 300, seed)
     spec = lesson05.model_specs(steps / lesson05.PROPOSED_STEPS)["hvrnn_proposed"]
-    batch = overrides.pop("batch", spec.batch)
-    spec = dataclasses.replace(spec, batch=batch, config=dataclasses.replace(spec.config, **overrides))
+    batch, lr_end = overrides.pop("batch", spec.batch), overrides.pop("lr_end", spec.lr_end)
+    spec = dataclasses.replace(spec, batch=batch, lr_end=lr_end, config=dataclasses.replace(spec.config, **overrides))
     model, hist = lesson05.train_model(spec, train, classifiers, seed)
     return model, data, hist.seconds
 
@@ -108,7 +131,7 @@ def teacher_forced(model, data: dict) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--only", nargs="*", default=None, choices=sorted([*VARIANTS, SHIPPED]))
+    parser.add_argument("--only", nargs="*", default=None, choices=sorted([*VARIANTS, SHIPPED, *TEMPERATURES]))
     parser.add_argument("--merge", action="store_true", help="add to the rows already in --out")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
@@ -121,10 +144,13 @@ def main(argv=None) -> int:
         mocap[s] = bench.quality(bench.Sample(proto.truth[b], proto.skeletons(b)), [], s, distribution=False)
     result["mocap_benchmark"] = {k: float(np.mean([r[k] for r in mocap.values()]))
                                  for k in ("foot_skate", "penetration", "jitter")}
-    for name in args.only or [*VARIANTS, SHIPPED]:
-        if name == SHIPPED:  # no training: the pretrained model, on the data as the reproduction prepares it
+    for name in args.only or [*VARIANTS, SHIPPED, *TEMPERATURES]:
+        if name == SHIPPED or name in TEMPERATURES:  # no training: the pretrained model, on the reproduction's data
             model, data = lesson05.load_model("hvrnn_proposed"), lesson05.load_data("full")
             row = {"retarget": lesson05.RETARGET, "steps": lesson05.PROPOSED_STEPS, "dae_steps": lesson05.DAE_STEPS}
+            if name in TEMPERATURES:
+                model.prior = TemperedPrior(model.prior, TEMPERATURES[name])
+                row["z_temperature"] = TEMPERATURES[name]
         else:
             retarget, steps, overrides = VARIANTS[name]
             model, data, seconds = train_variant(retarget, steps, overrides)
@@ -135,7 +161,7 @@ def main(argv=None) -> int:
         result["variants"][name] = rounded(row, 4)
         print(name, json.dumps(result["variants"][name]), file=sys.stderr, flush=True)
         write_study_result(args.out, result, checkpoints=[lesson05.CHECKPOINTS / "hvrnn_proposed.pt"]
-                           if name == SHIPPED else [])
+                           if name == SHIPPED or name in TEMPERATURES else [])
     return 0
 
 
