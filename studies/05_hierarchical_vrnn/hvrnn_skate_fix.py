@@ -152,6 +152,8 @@ def main(argv=None) -> int:
     proto = bench.load_protocol(bench.BenchSpec())
     old = json.loads(args.out.read_text()) if args.merge and args.out.exists() else {}
     result = {"question": __doc__.split("\n\n")[0], "variants": dict(old.get("variants", {}))}
+    if "merged_rows" in old:  # rows run elsewhere and merged in, each with its own provenance
+        result["merged_rows"] = old["merged_rows"]
     mocap = {}
     for s in range(5):
         _, b = bench.halves(len(proto.clips), s)
