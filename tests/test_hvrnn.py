@@ -285,7 +285,8 @@ def test_nc_forked_from_the_proposed_run_equals_nc_trained_from_scratch():
     # the shipped NC trains STEPS at its own schedules; the Proposed model longer: no fork between them
     assert not H.forkable(specs) or H.PROPOSED_STEPS == H.STEPS
     nc = dataclasses.replace(specs["hvrnn_nc"], config=dataclasses.replace(proposed.config, lambda_cl=0.0),
-                             steps=proposed.steps, batch=proposed.batch)  # NC on the Proposed model's recipe
+                             steps=proposed.steps, batch=proposed.batch,
+                             lr_end=proposed.lr_end)  # NC on the Proposed model's recipe, its falling rate too
     assert H.forkable({"hvrnn_proposed": proposed, "hvrnn_nc": nc})
     _, hist = H.train_model(proposed, data["train"], classifiers, keep_at=proposed.config.cl_start)
     forked, rest = H.continue_training(nc, hist.kept, data["train"])
