@@ -126,6 +126,25 @@ def study_pages() -> dict[str, str]:
     return pages
 
 
+def relink_lesson(text: str) -> str:
+    """A lesson's Markdown with its links into the lab (`../studies/<lesson>/README.md#anchor`, `../studies/README.md`)
+    pointed at the site's reproduction-notes pages, anchors kept."""
+    text = re.sub(r"\]\(\.\./studies/([^/)#]+)/(?:README\.md)?(#[^)]*)?\)",
+                  lambda m: f"](studies_{m.group(1)}.md{m.group(2) or ''})", text)
+    return re.sub(r"\]\(\.\./studies/(?:README\.md)?(#[^)]*)?\)",
+                  lambda m: f"](reproduction_notes.md{m.group(1) or ''})", text)
+
+
+def copy_lesson(nb: Path, dest: Path) -> None:
+    """Copy an executed notebook into the site's source with its Markdown cells' lab links relinked."""
+    book = json.loads(nb.read_text(encoding="utf-8"))
+    for cell in book["cells"]:
+        if cell["cell_type"] == "markdown":
+            source = "".join(cell["source"]) if isinstance(cell["source"], list) else cell["source"]
+            cell["source"] = relink_lesson(source)
+    dest.write_text(json.dumps(book, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+
+
 def extra_pages() -> list[Path]:
     """The site's pages beyond the lessons (tools/site/pages/*.md: troubleshooting, ...), in name order."""
     return sorted((CONF_DIR / "pages").glob("*.md"))
@@ -199,7 +218,7 @@ def prepare_source(notebooks: list[Path], src: Path, mode: str, demo: bool = Fal
     src.mkdir(parents=True)
     rows = []
     for nb in notebooks:
-        shutil.copy2(nb, src / nb.name)
+        copy_lesson(nb, src / nb.name)
         rows.append(lesson_info(nb))
     for page in extra_pages():
         shutil.copy2(page, src / page.name)
