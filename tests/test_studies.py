@@ -192,3 +192,10 @@ def test_the_count_line_is_the_truth():
     assert m, "studies/README.md has no count line '**N studies, M result files; K record command + commit + ...**'"
     truth = (len(SCRIPTS), len(RESULTS), sum(full(p) for p in RESULTS))
     assert tuple(map(int, m.groups())) == truth, f"studies/README.md says {m.groups()}, the folders hold {truth}"
+
+
+@pytest.mark.parametrize("result", RESULTS, ids=lambda p: p.stem)
+def test_each_result_was_recorded_from_a_clean_checkout(result):
+    """A result's commit is a full commit id without "+changes": the run's code is exactly that commit's."""
+    commit = json.loads(result.read_text()).get("commit", "")
+    assert re.fullmatch(r"[0-9a-f]{40}", commit), f"{result.name}: commit {commit!r} is not a clean checkout's"
