@@ -372,3 +372,16 @@ def test_lr_factor_is_constant_then_a_cosine_down_to_lr_end():
     assert [lr_factor(decay, k) for k in (0, 49, 50)] == [1.0, 1.0, 1.0]
     assert lr_factor(decay, 75) == pytest.approx(0.55)
     assert lr_factor(decay, 100) == pytest.approx(0.1)
+
+
+def test_held_frames_counts_the_padding_of_short_clips():
+    """Known answers: a clip 30 frames short of the sequence ends in 30 copies of its last frame; a clip that fills
+    it, or whose last two frames differ, has none; a frame equal to the last one earlier on does not count."""
+    from course_lib.experiments.hvrnn import held_frames
+
+    rng = np.random.default_rng(0)
+    full = rng.normal(size=(90, 4))
+    short = np.concatenate((full[:60], np.repeat(full[59:60], 30, 0)))
+    early = full.copy()
+    early[10] = early[-1]
+    assert held_frames(np.stack([short, full, early])).tolist() == [30, 0, 0]

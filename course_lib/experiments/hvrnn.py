@@ -90,6 +90,15 @@ def to_sequence(m: Motion, length: int = SEQ_LEN, retarget: bool = RETARGET) -> 
     return f[:length].astype(np.float32)
 
 
+def held_frames(x) -> np.ndarray:
+    """Sequences (N, T, D) -> (N,) how many frames at each one's end repeat its last frame exactly: the padding
+    `to_sequence` adds to a clip shorter than the sequence (0 for a clip that fills it)."""
+    x = np.asarray(x)
+    same = np.all(x == x[:, -1:], axis=-1)  # (N, T): the frame equals the last one
+    run = np.cumprod(same[:, ::-1], axis=1)  # 1 while the run of equal frames back from the end lasts
+    return run.sum(1) - 1  # the last frame itself is not padding
+
+
 def sequences(motions: list[Motion], length: int = SEQ_LEN, mirror: bool = False, retarget: bool = RETARGET) -> dict:
     """Clips -> {"x": (N, length, 90) float32 tensor, "action_id": (N,), "style_id": (N,), "subject": [N]}."""
     clips = list(motions) + ([m.mirror() for m in motions] if mirror else [])

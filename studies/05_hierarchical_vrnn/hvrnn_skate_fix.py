@@ -160,6 +160,15 @@ def main(argv=None) -> int:
         mocap[s] = bench.quality(bench.Sample(proto.truth[b], proto.skeletons(b)), [], s, distribution=False)
     result["mocap_benchmark"] = {k: float(np.mean([r[k] for r in mocap.values()]))
                                  for k in ("foot_skate", "penetration", "jitter")}
+    # the training sequences of each action ending in a held pose (a clip shorter than 3 s, padded by to_sequence):
+    # what a model that fits its data well learns about how that action ends
+    train = lesson05.load_data("full")["train"]
+    held = lesson05.held_frames(train["x"])
+    result["training_held_frames"] = {
+        act: {"padded_fraction": float((held[train["action_id"].numpy() == i] > 0).mean()),
+              "mean_held_frames": float(held[train["action_id"].numpy() == i].mean()),
+              "max_held_frames": int(held[train["action_id"].numpy() == i].max())}
+        for i, act in enumerate(lesson05.ACTIONS)}
     for name in args.only or [*VARIANTS, SHIPPED, *TEMPERATURES]:
         if name == SHIPPED or name in TEMPERATURES:  # no training: the pretrained model, on the reproduction's data
             model, data = lesson05.load_model("hvrnn_proposed"), lesson05.load_data("full")
