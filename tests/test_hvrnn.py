@@ -385,3 +385,21 @@ def test_held_frames_counts_the_padding_of_short_clips():
     early = full.copy()
     early[10] = early[-1]
     assert held_frames(np.stack([short, full, early])).tolist() == [30, 0, 0]
+
+
+def test_to_sequence_pads_a_short_clip_by_holding_or_by_looping():
+    """Known answers on a 40-frame clip in a 90-frame sequence: "hold" repeats frame 39 fifty times (held_frames
+    50); "loop" plays frames 0-39 again, then 0-9, so nothing is held; a full clip is the same either way; an
+    unknown pad is refused."""
+    from course_lib.experiments.hvrnn import held_frames, to_sequence
+    from course_lib.synthetic import generate_action, make_subject
+
+    clip = generate_action(make_subject(0, seed=0), "walk", duration=4.0, seed=0).resample(30.0)
+    short = clip[:40]
+    hold, loop = to_sequence(short, 90, pad="hold"), to_sequence(short, 90, pad="loop")
+    assert np.array_equal(hold[:40], loop[:40]) and held_frames(hold[None]).tolist() == [50]
+    assert np.array_equal(loop[40:80], loop[:40]) and np.array_equal(loop[80:], loop[:10])
+    assert held_frames(loop[None]).tolist() == [0]
+    assert np.array_equal(to_sequence(clip, 90, pad="hold"), to_sequence(clip, 90, pad="loop"))
+    with pytest.raises(ValueError, match="pad"):
+        to_sequence(short, 90, pad="zeros")

@@ -76,17 +76,24 @@ def retarget_root(features: np.ndarray, skeleton, to=None) -> np.ndarray:
     return f
 
 
-def to_sequence(m: Motion, length: int = SEQ_LEN, retarget: bool = RETARGET) -> np.ndarray:
+PADS = ("hold", "loop")  # how a clip shorter than the sequence is filled: its last frame held, or itself again
+
+
+def to_sequence(m: Motion, length: int = SEQ_LEN, retarget: bool = RETARGET, pad: str = "hold") -> np.ndarray:
     """One clip -> (length, 90) quaternion_root features at 30 fps from its first frame, the root retargeted to
-    the canonical skeleton (`retarget_root`); a shorter clip is padded by repeating its last frame (Ghorbani
-    pad with zeros, which are no valid quaternions)."""
+    the canonical skeleton (`retarget_root`); a shorter clip is padded by repeating its last frame (``pad`` =
+    "hold"; Ghorbani pad with zeros, which are no valid quaternions) or by playing it again from its start
+    ("loop": the features are velocities and local angles, so a loop has no jump of position)."""
     from course_lib.representations import encode_quaternion_root
 
+    if pad not in PADS:
+        raise ValueError(f"pad must be one of {', '.join(PADS)}, got {pad!r}")
     f = encode_quaternion_root(m if m.fps == FPS else m.resample(FPS))
     if retarget:
         f = retarget_root(f, m.skeleton)
     if len(f) < length:
-        f = np.concatenate((f, np.repeat(f[-1:], length - len(f), 0)))
+        fill = np.repeat(f[-1:], length - len(f), 0) if pad == "hold" else np.resize(f, (length - len(f), f.shape[1]))
+        f = np.concatenate((f, fill))
     return f[:length].astype(np.float32)
 
 
@@ -99,12 +106,13 @@ def held_frames(x) -> np.ndarray:
     return run.sum(1) - 1  # the last frame itself is not padding
 
 
-def sequences(motions: list[Motion], length: int = SEQ_LEN, mirror: bool = False, retarget: bool = RETARGET) -> dict:
+def sequences(motions: list[Motion], length: int = SEQ_LEN, mirror: bool = False, retarget: bool = RETARGET,
+              pad: str = "hold") -> dict:
     """Clips -> {"x": (N, length, 90) float32 tensor, "action_id": (N,), "style_id": (N,), "subject": [N]}."""
     clips = list(motions) + ([m.mirror() for m in motions] if mirror else [])
     if not clips:
         raise ValueError("sequences: no clips")
-    return {"x": torch.from_numpy(np.stack([to_sequence(m, length, retarget) for m in clips])),
+    return {"x": torch.from_numpy(np.stack([to_sequence(m, length, retarget, pad) for m in clips])),
             "action_id": torch.tensor([ACTIONS.index(m.action) for m in clips]),
             "style_id": torch.tensor([STYLES.index(m.style) for m in clips]),
             "subject": [m.subject for m in clips]}
@@ -131,13 +139,14 @@ def classifier_subjects() -> set[str]:
     return {s.name for s in ClassifierData().split()[0]}
 
 
-def load_data(mode: str | None = None, progress: bool = False, retarget: bool = RETARGET) -> dict:
-    """-> {"train": sequences (mirrored), "test": held-out sequences (mirrored), "train_clips", "test_clips"}."""
+def load_data(mode: str | None = None, progress: bool = False, retarget: bool = RETARGET, pad: str = "hold") -> dict:
+    """-> {"train": sequences (mirrored), "test": held-out sequences (mirrored), "train_clips", "test_clips"};
+    short clips padded by ``pad`` (`to_sequence`)."""
     from course_lib.datasets import load_dataset
 
     train, test = split_subjects(load_dataset("actions", mode=mode, fps=FPS, progress=progress))
-    return {"train": sequences(train, mirror=True, retarget=retarget),
-            "test": sequences(test, mirror=True, retarget=retarget), "train_clips": train, "test_clips": test}
+    return {"train": sequences(train, mirror=True, retarget=retarget, pad=pad),
+            "test": sequences(test, mirror=True, retarget=retarget, pad=pad), "train_clips": train, "test_clips": test}
 
 
 def batches(data: dict, batch: int, seed: int):

@@ -41,6 +41,9 @@ VARIANTS = {
     # two milder versions of it: does either keep long jumps from freezing (lesson 05's collapse at 200 frames)?
     "lr_decay03_drop06": (True, 3600, {"lr_end": 0.3, "drop_max": 0.6}),
     "lr_decay_drop045": (True, 3600, {"lr_end": 0.1, "drop_max": 0.45}),
+    # the recipe with short clips (the jumps) padded by playing them again instead of holding their last pose:
+    # is the long-jump freeze learnt from the padding?
+    "lr_decay_drop06_loop": (True, 3600, {"lr_end": 0.1, "drop_max": 0.6, "pad": "loop"}),
 }
 BASE = {"drop_max": 0.3, "lr_end": 1.0}  # the recipe before this study: words dropped up to 0.3, a constant rate
 SHIPPED = "shipped"  # the pretrained checkpoints/hvrnn_proposed.pt, trained by `python -m course_lib.reproduce hvrnn`
@@ -64,7 +67,7 @@ def train_variant(retarget: bool, steps: int, overrides: dict, seed: int = 0):
     """-> (model, seconds): the Proposed recipe of `lesson05.model_specs`, scaled to `steps`, with the study's base
     (BASE: the recipe it started from) and then `overrides`."""
     overrides = {**BASE, **overrides}
-    data = lesson05.load_data("full", retarget=retarget)
+    data = lesson05.load_data("full", retarget=retarget, pad=overrides.pop("pad", "hold"))
     dae, _ = lesson05.train_dae(overrides.pop("dae_steps", lesson05.DAE_STEPS), seed, "full", retarget=retarget)
     train = dict(data["train"], x=lesson05.clean(dae, data["train"]["x"]))
     classifiers = lesson05.train_loss_classifiers(train, 300, seed)
