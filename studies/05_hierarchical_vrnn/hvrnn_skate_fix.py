@@ -34,7 +34,6 @@ VARIANTS = {
     "retarget_b64_2400": (True, 2400, {"batch": 64, "dae_steps": 300}),  # the paper's batch of 64
     # the pretrained recipe (retargeting, the 1875-step DAE, 3600 steps) with the rate decayed over the second half
     "lr_decay": (True, 3600, {"lr_end": 0.1}),
-    "lr_decay_5400": (True, 5400, {"lr_end": 0.1}),
     # ... and twice the word dropping (the paper's remedy for exposure bias, which "helps with foot skating"): the
     # recipe `python -m course_lib.reproduce hvrnn` now trains
     "lr_decay_drop06": (True, 3600, {"lr_end": 0.1, "drop_max": 0.6}),
