@@ -34,7 +34,8 @@ def data(n=4, t=12, d=6, c=3, seed=1, dtype=torch.float32):
     return torch.randn(n, t, d, generator=g, dtype=dtype), torch.randn(n, t, c, generator=g, dtype=dtype)
 
 
-VARIANTS = [dict(), dict(conditioner="markov"), dict(next_step="gaussian"), dict(layers=2)]
+VARIANTS = [dict(), dict(conditioner="markov", coupling_net="mlp"), dict(next_step="gaussian"), dict(layers=2),
+            dict(coupling_net="mlp"), dict(coupling_net="lstm")]
 
 
 @pytest.mark.parametrize("kw", VARIANTS)
@@ -175,8 +176,9 @@ def test_loss_nats_per_frame_and_dropout_only_in_training():
     assert abs(a.item() - out["loss"].item()) > 1e-3  # history dropped
 
 
-def test_streaming_equals_batched_sampling():
-    model = tiny()
+@pytest.mark.parametrize("kw", [dict(coupling_net="mlp"), dict(coupling_net="lstm")])
+def test_streaming_equals_batched_sampling(kw):
+    model = tiny(**kw)
     x, c = data(t=15)
     g = torch.Generator().manual_seed(5)
     batched = model.sample(c, x[:, :3], temperature=0.7, generator=g)
@@ -190,7 +192,7 @@ def test_streaming_equals_batched_sampling():
     torch.testing.assert_close(model.encode(zero, c)[0], torch.zeros(4, 12, 6), atol=1e-4, rtol=0)
 
 
-@pytest.mark.parametrize("kw", [dict(), dict(conditioner="markov")])
+@pytest.mark.parametrize("kw", [dict(), dict(conditioner="markov", coupling_net="mlp"), dict(coupling_net="lstm")])
 def test_sample_history_fn_changes_only_what_is_fed_back(kw):
     """history_fn = 0: frame t conditions on the given poses, then zeros; computed in parallel by hand."""
     model = tiny(dropout=0.5, **kw)
@@ -247,8 +249,32 @@ def test_clear_errors():
         MoGlowConfig(6, 3, 3, conditioner="gru")
     with pytest.raises(ValueError, match="dropout"):
         MoGlowConfig(6, 3, 3, dropout=1.0)
+    with pytest.raises(ValueError, match="coupling_net must be"):
+        MoGlowConfig(6, 3, 3, coupling_net="gru")
+    with pytest.raises(ValueError, match="Markov model .* no memory"):
+        MoGlowConfig(6, 3, 3, conditioner="markov", coupling_net="lstm")
     with pytest.raises(ValueError, match="control must be"):
         model.stream(x[:, :3], c[:, :3]).step(c[:2, 3])
+
+
+def test_recurrent_coupling_remembers_poses_the_history_dropout_hides():
+    """With every history frame dropped (history_fn = 0 and no history scale), an MLP-coupling model's frame t
+    cannot depend on the poses it generated before; the recurrent couplings' memory carries them (the authors'
+    design).  Generated frame by frame, the memory gives what the whole sequence gives at once."""
+    x, c = data(t=10)
+    z = torch.randn(4, 7, 6, generator=torch.Generator().manual_seed(3))
+    for kind, depends in (("mlp", False), ("lstm", True)):
+        model = tiny(coupling_net=kind, dropout=0.0)
+        zeros = torch.zeros(4, 7, 6)
+        h, _ = model.condition(model.condition_inputs(torch.cat((x[:, :3], zeros), 1), c))
+        a = model.flow_inverse(z, h)
+        z2 = z.clone()
+        z2[:, 0] += 1.0  # another first frame; the conditioning h is the same (history zeroed)
+        b = model.flow_inverse(z2, h)
+        assert ((b[:, 1:] - a[:, 1:]).abs().max() > 1e-3) == depends, kind
+        memory = model.new_memory()
+        frames = torch.cat([model.flow_inverse(z[:, t:t + 1], h[:, t:t + 1], memory=memory) for t in range(7)], 1)
+        torch.testing.assert_close(frames, a)
 
 
 def test_cpu_preset_and_step_api():

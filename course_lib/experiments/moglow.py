@@ -54,6 +54,7 @@ LR = 1e-3  # the paper: 1e-4 with a Noam schedule over 80k steps; ours is a shor
 LR_DECAY_FROM = 0.6
 LR_FLOOR = 0.01
 GRAD_CLIP = 5.0  # StyleGestures' max_grad_clip
+ONE_BODY = False  # every clip on the canonical skeleton (the paper's data were retargeted to one skeleton)
 EVAL_SEEDS = 3  # generation seeds of the distribution scores
 MIN_DISTRIBUTION_CLIPS = 20  # FID / C2ST need at least this many held-out clips
 BLOW_UP = 20.0  # |standardised pose value| beyond this (20 sd) = a sample that exploded
@@ -130,11 +131,17 @@ def _tensors(ds, fixed: np.ndarray) -> dict:
     return {"poses": x[..., keep].contiguous(), "controls": x[..., 63:].contiguous()}
 
 
-def load_data(mode: str | None = "full", seed: int = 0) -> MoGlowData:
-    """The locomotion clips at 20 fps, split by subject; train mirrored + time-reversed (sec. 5.1)."""
+def load_data(mode: str | None = "full", seed: int = 0, one_body: bool = ONE_BODY) -> MoGlowData:
+    """The locomotion clips at 20 fps, split by subject; train mirrored + time-reversed (sec. 5.1).  With
+    `one_body` every clip is first put on the canonical skeleton (`Motion.retarget`), as the paper's data were
+    retargeted to one skeleton."""
     from course_lib.datasets import FixedDofs, WindowDataset, load_dataset, split_by_subject
 
     clips = load_dataset("locomotion", mode=mode, fps=FPS)
+    if one_body:
+        from course_lib.skeleton import Skeleton
+
+        clips = [m.retarget(Skeleton.canonical()) for m in clips]
     train, val, test = split_by_subject(clips, (0.8, 0.1, 0.1), seed=seed)
     ds = WindowDataset(train, "positions_control", WINDOW, fps=FPS, mirror=True, reverse=True)
     fixed = FixedDofs.from_stats(*ds.stats).mask[:63]

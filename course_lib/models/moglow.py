@@ -54,12 +54,13 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-__all__ = ["ActNorm", "AffineCoupling", "FlowStep", "GaussianStep", "InvertibleLinear", "MoGlow",
+__all__ = ["ActNorm", "AffineCoupling", "FlowStep", "GaussianStep", "InvertibleLinear", "Memory", "MoGlow",
            "MoGlowConfig", "MoGlowStream"]
 
 LOG_2PI = math.log(2 * math.pi)
 CONDITIONERS = ("lstm", "markov")
 NEXT_STEPS = ("glow", "gaussian")
+COUPLING_NETS = ("lstm", "mlp")
 
 
 @dataclass
@@ -72,7 +73,8 @@ class MoGlowConfig:
     steps: int = 16  # K: steps of flow (one level, L = 1)
     hidden: int = 512  # units of each layer of the conditioning LSTM (or MLP, Markov variant)
     layers: int = 2  # layers of the conditioning LSTM / MLP
-    coupling_hidden: int = 512  # units of the two hidden layers of each coupling's NN
+    coupling_hidden: int = 512  # units of each coupling's NN (LSTM state, or the MLP's two hidden layers)
+    coupling_net: str = "mlp"  # each coupling's NN: "lstm" (the authors' code: recurrent over the frames) or "mlp"
     conditioner: str = "lstm"  # "lstm" (state-space model, eq. 17) or "markov" (feed-forward, eq. 12)
     next_step: str = "glow"  # "glow" (the flow) or "gaussian" (conditional diagonal Gaussian baseline)
     dropout: float = 0.95  # per-frame dropout rate of the autoregressive pose inputs (sec. 5.3)
@@ -93,6 +95,11 @@ class MoGlowConfig:
             raise ValueError(f"MoGlowConfig: a coupling needs pose_dim >= 2, got {self.pose_dim}")
         if self.conditioner not in CONDITIONERS:
             raise ValueError(f"MoGlowConfig: conditioner must be one of {CONDITIONERS}, got {self.conditioner!r}")
+        if self.coupling_net not in COUPLING_NETS:
+            raise ValueError(f"MoGlowConfig: coupling_net must be one of {COUPLING_NETS}, got {self.coupling_net!r}")
+        if self.coupling_net == "lstm" and self.conditioner == "markov":
+            raise ValueError("MoGlowConfig: a Markov model (conditioner 'markov') has no memory; its couplings "
+                             "must be feed-forward (coupling_net 'mlp')")
         if self.next_step not in NEXT_STEPS:
             raise ValueError(f"MoGlowConfig: next_step must be one of {NEXT_STEPS}, got {self.next_step!r}")
         if not 0.0 <= self.dropout < 1.0:
@@ -178,30 +185,55 @@ def _mlp(inputs: int, hidden: int, outputs: int) -> nn.Sequential:
     return net
 
 
+class Memory:
+    """The running state of one recurrent coupling across calls (generation frame by frame): ``value`` is the
+    LSTM's (h, c), None before the first frame.  A coupling given no Memory starts from zero state."""
+
+    def __init__(self):
+        self.value = None
+
+
 class AffineCoupling(nn.Module):
     """y_a = x_a, y_b = sigmoid(raw + shift) * (x_b + t) with (raw, t) = NN(x_a, h)   -- eq. (6), (7), (18).
 
-    x_a: the first D // 2 features, x_b the other D - D // 2."""
+    x_a: the first D // 2 features, x_b the other D - D // 2.  ``recurrent``: the NN is an LSTM over the frames
+    (then x (N, T, D), h (N, T, H)) with a zero-initialised linear output, as the authors' code builds it: its
+    state carries every earlier frame's x_a, a memory of the poses that history dropout does not reach."""
 
-    def __init__(self, dim: int, cond_dim: int, hidden: int, scale_shift: float = 2.0):
+    def __init__(self, dim: int, cond_dim: int, hidden: int, scale_shift: float = 2.0, recurrent: bool = False):
         super().__init__()
-        self.split, self.scale_shift = dim // 2, scale_shift
-        self.net = _mlp(self.split + cond_dim, hidden, 2 * (dim - self.split))
+        self.split, self.scale_shift, self.recurrent = dim // 2, scale_shift, recurrent
+        outputs = 2 * (dim - self.split)
+        if recurrent:
+            self.lstm = nn.LSTM(self.split + cond_dim, hidden, batch_first=True)
+            self.out = nn.Linear(hidden, outputs)
+            nn.init.zeros_(self.out.weight)
+            nn.init.zeros_(self.out.bias)
+        else:
+            self.net = _mlp(self.split + cond_dim, hidden, outputs)
 
-    def scale_and_shift(self, x_a: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """-> log sigma, t: (..., D - D // 2) each."""
-        raw, t = self.net(torch.cat((x_a, h), -1)).chunk(2, -1)
+    def scale_and_shift(self, x_a: torch.Tensor, h: torch.Tensor,
+                        memory: Memory | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """-> log sigma, t: (..., D - D // 2) each; a recurrent coupling reads and updates `memory`."""
+        inputs = torch.cat((x_a, h), -1)
+        if self.recurrent:
+            hidden, state = self.lstm(inputs, None if memory is None else memory.value)
+            if memory is not None:
+                memory.value = state
+            raw, t = self.out(hidden).chunk(2, -1)
+        else:
+            raw, t = self.net(inputs).chunk(2, -1)
         return nn.functional.logsigmoid(raw + self.scale_shift), t  # sigma in (0, 1): the stable scale
 
-    def forward(self, x: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, x: torch.Tensor, h: torch.Tensor, memory: Memory | None = None):
         x_a, x_b = x[..., :self.split], x[..., self.split:]
-        log_sigma, t = self.scale_and_shift(x_a, h)
+        log_sigma, t = self.scale_and_shift(x_a, h, memory)
         y_b = torch.exp(log_sigma) * (x_b + t)  # eq. (6)
         return torch.cat((x_a, y_b), -1), log_sigma.sum(-1)
 
-    def inverse(self, y: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+    def inverse(self, y: torch.Tensor, h: torch.Tensor, memory: Memory | None = None) -> torch.Tensor:
         y_a, y_b = y[..., :self.split], y[..., self.split:]
-        log_sigma, t = self.scale_and_shift(y_a, h)  # y_a = x_a: the same NN output as the forward pass
+        log_sigma, t = self.scale_and_shift(y_a, h, memory)  # y_a = x_a: the same NN input as the forward pass
         return torch.cat((y_a, y_b * torch.exp(-log_sigma) - t), -1)
 
 
@@ -209,21 +241,22 @@ class FlowStep(nn.Module):
     """One Glow step of flow (Fig. 1): actnorm -> invertible 1x1 linear -> affine coupling."""
 
     def __init__(self, dim: int, cond_dim: int, hidden: int, scale_shift: float = 2.0,
-                 generator: torch.Generator | None = None):
+                 generator: torch.Generator | None = None, recurrent: bool = False):
         super().__init__()
         self.actnorm = ActNorm(dim)
         self.linear = InvertibleLinear(dim, generator)
-        self.coupling = AffineCoupling(dim, cond_dim, hidden, scale_shift)
+        self.coupling = AffineCoupling(dim, cond_dim, hidden, scale_shift, recurrent)
 
-    def forward(self, x: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, x: torch.Tensor, h: torch.Tensor, memory: Memory | None = None):
         """x (..., D), h (..., H) -> y (..., D), log|det dy/dx| (...)."""
         y, ld1 = self.actnorm(x)
         y, ld2 = self.linear(y)
-        y, ld3 = self.coupling(y, h)
+        y, ld3 = self.coupling(y, h, memory)
         return y, ld1 + ld2 + ld3
 
-    def inverse(self, y: torch.Tensor, h: torch.Tensor, weight_inv: torch.Tensor | None = None) -> torch.Tensor:
-        x = self.coupling.inverse(y, h)
+    def inverse(self, y: torch.Tensor, h: torch.Tensor, weight_inv: torch.Tensor | None = None,
+                memory: Memory | None = None) -> torch.Tensor:
+        x = self.coupling.inverse(y, h, memory)
         x = self.linear.inverse(x, weight_inv=weight_inv)
         return self.actnorm.inverse(x)
 
@@ -235,11 +268,11 @@ class GaussianStep(nn.Module):
         super().__init__()
         self.net = _mlp(cond_dim, hidden, 2 * dim)  # starts at mu = 0, sigma = 1
 
-    def forward(self, x: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, x: torch.Tensor, h: torch.Tensor, memory=None) -> tuple[torch.Tensor, torch.Tensor]:
         mu, log_sigma = self.net(h).chunk(2, -1)
         return (x - mu) * torch.exp(-log_sigma), -log_sigma.sum(-1)
 
-    def inverse(self, z: torch.Tensor, h: torch.Tensor, weight_inv=None) -> torch.Tensor:
+    def inverse(self, z: torch.Tensor, h: torch.Tensor, weight_inv=None, memory=None) -> torch.Tensor:
         mu, log_sigma = self.net(h).chunk(2, -1)
         return z * torch.exp(log_sigma) + mu
 
@@ -261,8 +294,8 @@ class MoGlow(nn.Module):
                 layers += [nn.Linear(c.hidden, c.hidden), nn.ReLU()]
             self.mlp = nn.Sequential(*layers)
         if c.next_step == "glow":
-            self.flow = nn.ModuleList(FlowStep(c.pose_dim, c.hidden, c.coupling_hidden, c.scale_shift)
-                                      for _ in range(c.steps))
+            self.flow = nn.ModuleList(FlowStep(c.pose_dim, c.hidden, c.coupling_hidden, c.scale_shift,
+                                               recurrent=c.coupling_net == "lstm") for _ in range(c.steps))
         else:
             self.flow = nn.ModuleList([GaussianStep(c.pose_dim, c.hidden, c.coupling_hidden)])
 
@@ -305,20 +338,28 @@ class MoGlow(nn.Module):
 
     # --- the flow, data <-> latent, for conditioned frames ----------------------------------------
 
-    def flow_forward(self, x: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """x (..., D), h (..., H) -> z (..., D), log|det dz/dx| (...)."""
+    def flow_forward(self, x: torch.Tensor, h: torch.Tensor, memory: list | None = None):
+        """x (N, T', D), h (N, T', H) -> z (N, T', D), log|det dz/dx| (N, T'); memory: `new_memory()`'s
+        states of the recurrent couplings, read and updated (None: they start from zero)."""
+        memory = memory or [None] * len(self.flow)
         log_det = torch.zeros(x.shape[:-1], dtype=x.dtype, device=x.device)
-        for layer in self.flow:
-            x, ld = layer(x, h)
+        for layer, mem in zip(self.flow, memory, strict=True):
+            x, ld = layer(x, h, mem)
             log_det = log_det + ld
         return x, log_det
 
-    def flow_inverse(self, z: torch.Tensor, h: torch.Tensor, weight_invs=None) -> torch.Tensor:
-        """z (..., D), h (..., H) -> x (..., D); weight_invs: the 1x1 maps' inverses (`weight_inverses`)."""
+    def flow_inverse(self, z: torch.Tensor, h: torch.Tensor, weight_invs=None, memory: list | None = None):
+        """z (N, T', D), h (N, T', H) -> x (N, T', D); weight_invs: the 1x1 maps' inverses
+        (`weight_inverses`); memory: as `flow_forward`."""
         weight_invs = weight_invs or [None] * len(self.flow)
-        for layer, w_inv in zip(reversed(self.flow), reversed(weight_invs), strict=True):
-            z = layer.inverse(z, h, weight_inv=w_inv)
+        memory = memory or [None] * len(self.flow)
+        for layer, w_inv, mem in zip(reversed(self.flow), reversed(weight_invs), reversed(memory), strict=True):
+            z = layer.inverse(z, h, weight_inv=w_inv, memory=mem)
         return z
+
+    def new_memory(self) -> list[Memory]:
+        """Fresh running states for the couplings, one per step of flow (for generation frame by frame)."""
+        return [Memory() for _ in self.flow]
 
     def weight_inverses(self) -> list[torch.Tensor | None]:
         """The inverse of each step's 1x1 map, computed once per generated sequence."""
@@ -403,7 +444,7 @@ class MoGlowStream:
                              f"{initial_poses.shape[1]} poses and {initial_controls.shape[1]} controls")
         self.model, self.state, self.history_fn = model, None, history_fn
         self.poses, self.controls = initial_poses.clone(), initial_controls.clone()  # (N, tau, D), (N, tau, C)
-        self.weight_invs = model.weight_inverses()
+        self.weight_invs, self.memory = model.weight_inverses(), model.new_memory()
 
     @torch.no_grad()
     def step(self, control: torch.Tensor, z: torch.Tensor | None = None, temperature: float = 1.0,
@@ -419,7 +460,7 @@ class MoGlowStream:
         h, self.state = self.model.condition(inputs, self.state)  # (N, 1, H)
         if z is None:
             z = temperature * torch.randn(N, D, generator=generator, dtype=self.poses.dtype)
-        x = self.model.flow_inverse(z[:, None], h, self.weight_invs)[:, 0]  # (N, D)
+        x = self.model.flow_inverse(z[:, None], h, self.weight_invs, self.memory)[:, 0]  # (N, D)
         kept = x if self.history_fn is None else self.history_fn(x)  # what the next frames condition on
         self.poses = torch.cat((self.poses[:, 1:], kept[:, None]), 1)
         self.controls = ctrl[:, 1:]

@@ -6,6 +6,15 @@ moglow_history_temperature and moglow_teacher_forced.
     python studies/06_moglow/moglow_dropout_history.py --dropout 0.95 --history scaled --steps 7000 --out studies/06_moglow/moglow_dropout_history_7000_results.json
 
 The second run is the pretrained recipe trained 7000 steps instead of 5000: the most one core allows in 15 minutes.
+Two more runs take the pretrained recipe and change one thing that the paper or the authors' code does otherwise:
+
+    python studies/06_moglow/moglow_dropout_history.py --dropout 0.95 --history scaled --one-body --out studies/06_moglow/moglow_dropout_history_one_body_results.json
+    python studies/06_moglow/moglow_dropout_history.py --dropout 0.95 --history scaled --coupling lstm --out studies/06_moglow/moglow_dropout_history_coupling_lstm_results.json
+
+--one-body: every clip on the canonical skeleton (the paper's data were retargeted to one skeleton; ours has 45
+bodies, and a pose sampled frame by frame could change the body).  --coupling lstm: each coupling's NN is an LSTM
+over the frames, as in the authors' code (StyleGestures' glow/models.py), whose state remembers every earlier
+frame's pose features, which history dropout does not hide; ours is an MLP on the shared conditioning.
 
 Trains one MoGlow (the `moglow` recipe of experiments.moglow: `MoGlowConfig.cpu()`, same steps, LR schedule and
 seed) with the given dropout, history rule and steps, into memory only (nothing written to checkpoints/), then
@@ -49,18 +58,23 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=E.STEPS)
     parser.add_argument("--history", choices=("scaled", "unscaled"), default="unscaled",
                         help="the history rule at generation: x (1 - dropout) (the course's) or as is (StyleGestures')")
+    parser.add_argument("--one-body", action="store_true", help="every clip retargeted to the canonical skeleton")
+    parser.add_argument("--coupling", choices=("mlp", "lstm"), default="mlp",
+                        help="each coupling's NN: an MLP (the course's) or an LSTM over the frames (the authors' code)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     ht, tf = _study("moglow_history_temperature"), _study("moglow_teacher_forced")
     t0 = time.perf_counter()
-    data = E.load_data("full")
-    E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": args.history == "scaled"}
+    data = E.load_data("full", one_body=args.one_body)
+    E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": args.history == "scaled",
+                          "coupling_net": args.coupling}
     model, hist = E.train_model("moglow", data, args.steps, seed=0)
     train_s = time.perf_counter() - t0
     starts = [root_start(m) for m in data.test_clips]
     p, c = data.test["poses"], data.test["controls"]
     out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": args.history == "scaled",
-           "steps": args.steps, "train_seconds": train_s, "nll_per_frame": E.nll_per_frame(model, data.test),
+           "steps": args.steps, "one_body": args.one_body, "coupling_net": args.coupling, "train_seconds": train_s,
+           "nll_per_frame": E.nll_per_frame(model, data.test),
            "mocap": ht.scores(data, p, c, starts), "free_running": {}}
     for temp in (1.0, 0.8):
         row = ht.sample_scores(model, data, starts, temp)
@@ -69,9 +83,15 @@ def main() -> None:
     skel = data.test_clips[0].skeleton
     toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
     mocap = data.positions(p, c, starts)
-    out["teacher_forced_skate"] = {f"T={t}": tf.pair_skate(mocap, data.positions(tf.one_step(model, p, c, t), c, starts),
-                                                           toes) for t in (1.0, 0.0)}
-    speed, speed_nodrop = stepping(model, data), stepping(E.load_model("moglow_nodrop"), data)
+    if args.coupling == "mlp":  # one_step's parallel inverse would feed a recurrent coupling sampled, not mocap, frames
+        out["teacher_forced_skate"] = {f"T={t}": tf.pair_skate(mocap, data.positions(tf.one_step(model, p, c, t), c,
+                                                                                     starts), toes) for t in (1.0, 0.0)}
+    row = ht.scores(data, *E.generate(model, data, data.test["controls"], 0, 0.0, starts=(p[:, :E.TAU], c[:, :E.TAU])),
+                    starts)  # z = 0: every frame the flow's mode given its history (no sampling noise)
+    out["free_running"]["T=0.0"] = {**row, "jitter_x_mocap": row["jitter"] / out["mocap"]["jitter"]}
+    # the pretrained no-dropout model reads the course's (many-body) standardisation
+    speed = stepping(model, data)
+    speed_nodrop = stepping(E.load_model("moglow_nodrop"), E.load_data("full") if args.one_body else data)
     out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "ratio": speed / speed_nodrop}
     out["seconds"] = time.perf_counter() - t0
     write_study_result(args.out, out)
