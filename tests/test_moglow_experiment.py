@@ -32,6 +32,19 @@ def test_features_back_to_the_clips_positions(data):
     np.testing.assert_allclose(pos, m.positions()[: E.WINDOW], atol=1e-4)
 
 
+def test_one_body_puts_every_clip_on_the_canonical_skeleton(data):
+    from course_lib.representations import root_start
+    from course_lib.skeleton import Skeleton
+
+    one = E.load_data("ci", one_body=True)
+    canonical = Skeleton.canonical()
+    assert all(np.allclose(m.skeleton.offsets, canonical.offsets) for m in one.test_clips)
+    assert not all(np.allclose(m.skeleton.offsets, canonical.offsets) for m in data.test_clips)  # bodies kept
+    m = one.test_clips[0]  # the features still decode to the (retargeted) clip's own positions
+    pos = one.positions(one.test["poses"][:1], one.test["controls"][:1], [root_start(m)])[0]
+    np.testing.assert_allclose(pos, m.positions()[: E.WINDOW], atol=1e-4)
+
+
 def test_stride_frequency_known_answer():
     t = np.arange(200) / E.FPS
     local = np.zeros((2, 200, 21, 3))
