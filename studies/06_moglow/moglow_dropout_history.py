@@ -45,10 +45,22 @@ def _study(name: str):
     return mod
 
 
-def stepping(model, data, seed: int = 0, n: int = 32) -> float:
+def stepping(model, data, seed: int = 0, n: int = 32) -> tuple[float, int]:
+    """-> the feet's stepping speed (m/s) of n 10-s samples told to stand, over those that did not blow up
+    (`experiments.moglow.exploded`), and how many blew up."""
     frames = E.TAU + int(10 * E.FPS)
     poses, ctl = E.generate(model, data, E.constant_control(data, n, frames), seed)
-    return E.foot_speed(E.local_positions(data, poses[:, E.TAU:], ctl[:, E.TAU:]), E.STEP_LAG)
+    ok = ~E.exploded(poses)
+    speed = E.foot_speed(E.local_positions(data, poses[ok, E.TAU:], ctl[ok, E.TAU:]), E.STEP_LAG) if ok.any() else None
+    return speed, int((~ok).sum())
+
+
+@torch.no_grad()
+def window_nll(model, data: dict) -> torch.Tensor:
+    """-> (N,) held-out NLL of each window, nats per frame (its mean is `experiments.moglow.nll_per_frame`)."""
+    frames = data["poses"].shape[1] - model.config.tau
+    return torch.cat([-model.log_prob(data["poses"][i:i + 64], data["controls"][i:i + 64]) / frames
+                      for i in range(0, len(data["poses"]), 64)])
 
 
 def main() -> None:
@@ -75,6 +87,7 @@ def main() -> None:
     out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": args.history == "scaled",
            "steps": args.steps, "one_body": args.one_body, "coupling_net": args.coupling, "train_seconds": train_s,
            "nll_per_frame": E.nll_per_frame(model, data.test),
+           "nll_per_frame_median_window": float(window_nll(model, data.test).median()),
            "mocap": ht.scores(data, p, c, starts), "free_running": {}}
     for temp in (1.0, 0.8):
         row = ht.sample_scores(model, data, starts, temp)
@@ -90,9 +103,10 @@ def main() -> None:
                     starts)  # z = 0: every frame the flow's mode given its history (no sampling noise)
     out["free_running"]["T=0.0"] = {**row, "jitter_x_mocap": row["jitter"] / out["mocap"]["jitter"]}
     # the pretrained no-dropout model reads the course's (many-body) standardisation
-    speed = stepping(model, data)
-    speed_nodrop = stepping(E.load_model("moglow_nodrop"), E.load_data("full") if args.one_body else data)
-    out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "ratio": speed / speed_nodrop}
+    (speed, blew_up), (speed_nodrop, _) = stepping(model, data), stepping(
+        E.load_model("moglow_nodrop"), E.load_data("full") if args.one_body else data)
+    out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "samples": 32, "exploded": blew_up,
+                           "ratio": None if speed is None else speed / speed_nodrop}
     out["seconds"] = time.perf_counter() - t0
     write_study_result(args.out, out)
     print(out)
