@@ -53,6 +53,8 @@ class SamplingStep(nn.Module):
         cfg = model.config
         if cfg.conditioner != "lstm" or cfg.next_step != "glow":
             raise ValueError(f"SamplingStep: exports the LSTM + Glow MoGlow, got {cfg.conditioner} + {cfg.next_step}")
+        if cfg.coupling_net != "mlp":  # a recurrent coupling's state would need inputs and outputs of its own
+            raise ValueError(f"SamplingStep: exports MLP couplings (coupling_net='mlp'), got {cfg.coupling_net!r}")
         self.lstm, self.flow, self.scale = model.lstm, model.flow, model.history_scale()
         for k, layer in enumerate(model.flow):  # W^-1 once, in float64, stored as a constant of the graph
             w_inv = torch.linalg.inv(layer.linear.weight().detach().double()).float()

@@ -75,6 +75,15 @@ def test_export_refuses_an_old_opset(exported, tmp_path):
         X.export_step(exported[0], tmp_path / "old.onnx", opset=16)
 
 
+def test_export_refuses_recurrent_couplings(tmp_path):
+    from course_lib.models.moglow import MoGlow, MoGlowConfig
+
+    model = MoGlow(MoGlowConfig(6, 3, 3, steps=2, hidden=8, layers=1, coupling_hidden=8, coupling_net="lstm"))
+    with pytest.raises(ValueError, match="MLP couplings"):
+        X.export_step(model, tmp_path / "recurrent.onnx")
+    assert not (tmp_path / "recurrent.onnx").exists()
+
+
 def test_control_sequence_reaches_the_commands():
     raw = X.control_sequence(fps=20.0)
     assert raw.shape == (240, 3)

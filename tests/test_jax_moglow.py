@@ -73,3 +73,9 @@ def test_gradients_of_inputs_and_parameters():
         np.testing.assert_allclose(np.asarray(gp[f"W{i}"]).T, lin.weight.grad.numpy(), atol=ATOL, rtol=0)
         np.testing.assert_allclose(np.asarray(gp[f"b{i}"]), lin.bias.grad.numpy(), atol=ATOL, rtol=0)
     assert np.abs(np.asarray(gp["W3"])).max() > 1e-3
+
+
+def test_torch_to_jax_refuses_a_recurrent_coupling():
+    step = FlowStep(6, 2, 8, recurrent=True)
+    with pytest.raises(ValueError, match="coupling is an LSTM"):
+        jm.torch_to_jax(step)

@@ -68,6 +68,8 @@ def torch_to_jax(step, dtype=jnp.float64) -> dict:
     def a(t):
         return jnp.asarray(np.asarray(t.detach().cpu().double().numpy()), dtype=dtype)
 
+    if step.coupling.recurrent:
+        raise ValueError("torch_to_jax: writes the MLP coupling (coupling_net='mlp'); this step's coupling is an LSTM")
     lins = [m for m in step.coupling.net if hasattr(m, "weight")]
     p = {"bias": a(step.actnorm.bias), "log_scale": a(step.actnorm.log_scale), "P": a(step.linear.P),
          "lower": a(step.linear.lower), "upper": a(step.linear.upper), "sign_s": a(step.linear.sign_s),
