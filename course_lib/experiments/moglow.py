@@ -131,18 +131,22 @@ def _tensors(ds, fixed: np.ndarray) -> dict:
     return {"poses": x[..., keep].contiguous(), "controls": x[..., 63:].contiguous()}
 
 
-def load_data(mode: str | None = "full", seed: int = 0, one_body: bool = ONE_BODY) -> MoGlowData:
+def load_data(mode: str | None = "full", seed: int = 0, one_body: bool = ONE_BODY, extra_clips: int = 0) -> MoGlowData:
     """The locomotion clips at 20 fps, split by subject; train mirrored + time-reversed (sec. 5.1).  With
     `one_body` every clip is first put on the canonical skeleton (`Motion.retarget`), as the paper's data were
-    retargeted to one skeleton."""
-    from course_lib.datasets import FixedDofs, WindowDataset, load_dataset, split_by_subject
+    retargeted to one skeleton.  `extra_clips`: that many more clips generated for training only (generator seed
+    seed + 1: other subjects, named "extra-sNN"); the validation and held-out clips are unchanged."""
+    from course_lib.datasets import FixedDofs, WindowDataset, generate_locomotion_set, load_dataset, split_by_subject
 
     clips = load_dataset("locomotion", mode=mode, fps=FPS)
+    train, val, test = split_by_subject(clips, (0.8, 0.1, 0.1), seed=seed)
+    if extra_clips:
+        more = generate_locomotion_set(extra_clips, seed + 1, FPS)
+        train = train + [dataclasses.replace(m, subject=f"extra-{m.subject}") for m in more]
     if one_body:
         from course_lib.skeleton import Skeleton
 
-        clips = [m.retarget(Skeleton.canonical()) for m in clips]
-    train, val, test = split_by_subject(clips, (0.8, 0.1, 0.1), seed=seed)
+        train, val, test = ([m.retarget(Skeleton.canonical()) for m in part] for part in (train, val, test))
     ds = WindowDataset(train, "positions_control", WINDOW, fps=FPS, mirror=True, reverse=True)
     fixed = FixedDofs.from_stats(*ds.stats).mask[:63]
     held = WindowDataset(test, "positions_control", WINDOW, fps=FPS, stats=ds.stats)

@@ -15,6 +15,10 @@ Two more runs take the pretrained recipe and change one thing that the paper or 
 bodies, and a pose sampled frame by frame could change the body).  --coupling lstm: each coupling's NN is an LSTM
 over the frames, as in the authors' code (StyleGestures' glow/models.py), whose state remembers every earlier
 frame's pose features, which history dropout does not hide; ours is an MLP on the shared conditioning.
+Trained four times as long (--steps 20000) the model overfits its 5920 windows; --extra-clips 3600 adds that many
+generated clips of other subjects to the training split (the held-out clips unchanged):
+
+    python studies/06_moglow/moglow_dropout_history.py --dropout 0.95 --history scaled --steps 20000 --extra-clips 3600 --out studies/06_moglow/moglow_dropout_history_20000_more_data_results.json
 
 Trains one MoGlow (the `moglow` recipe of experiments.moglow: `MoGlowConfig.cpu()`, same steps, LR schedule and
 seed) with the given dropout, history rule and steps, into memory only (nothing written to checkpoints/), then
@@ -71,13 +75,15 @@ def main() -> None:
     parser.add_argument("--history", choices=("scaled", "unscaled"), default="unscaled",
                         help="the history rule at generation: x (1 - dropout) (the course's) or as is (StyleGestures')")
     parser.add_argument("--one-body", action="store_true", help="every clip retargeted to the canonical skeleton")
+    parser.add_argument("--extra-clips", type=int, default=0,
+                        help="more generated clips (other subjects) added to the training split only")
     parser.add_argument("--coupling", choices=("mlp", "lstm"), default="mlp",
                         help="each coupling's NN: an MLP (the course's) or an LSTM over the frames (the authors' code)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     ht, tf = _study("moglow_history_temperature"), _study("moglow_teacher_forced")
     t0 = time.perf_counter()
-    data = E.load_data("full", one_body=args.one_body)
+    data = E.load_data("full", one_body=args.one_body, extra_clips=args.extra_clips)
     E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": args.history == "scaled",
                           "coupling_net": args.coupling}
     model, hist = E.train_model("moglow", data, args.steps, seed=0)
@@ -85,7 +91,8 @@ def main() -> None:
     starts = [root_start(m) for m in data.test_clips]
     p, c = data.test["poses"], data.test["controls"]
     out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": args.history == "scaled",
-           "steps": args.steps, "one_body": args.one_body, "coupling_net": args.coupling, "train_seconds": train_s,
+           "steps": args.steps, "one_body": args.one_body, "extra_clips": args.extra_clips,
+           "train_windows": len(data.train["poses"]), "coupling_net": args.coupling, "train_seconds": train_s,
            "nll_per_frame": E.nll_per_frame(model, data.test),
            "nll_per_frame_median_window": float(window_nll(model, data.test).median()),
            "mocap": ht.scores(data, p, c, starts), "free_running": {}}
