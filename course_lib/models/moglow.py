@@ -31,7 +31,10 @@ Differs from the paper:
 - one LSTM computes h_t and is shared by the K couplings, each coupling's NN a 2-hidden-layer MLP on
   (x_a, h_t); in the paper (and StyleGestures) every coupling has its own 2-layer LSTM of 512 units.
   Sharing makes the model K times cheaper on a CPU and gives the Gaussian baseline exactly the
-  conditioning network of the flow.
+  conditioning network of the flow.  ``coupling_net = "lstm"`` makes each coupling's NN an LSTM over
+  the frames on (x_a, h_t), as the authors' code does: its state carries every earlier frame's x_a,
+  which history dropout does not hide (lesson 06's study notes: at our training length it does not
+  plant the feet either).
 - `MoGlowConfig.cpu()` (the course's models): K = 8 steps (paper 16), 1 LSTM layer of 128 units
   (paper 2 x 512), coupling MLPs of 128 units.
 - autoregressive dropout as StyleGestures does it: each of the tau history frames of each output
