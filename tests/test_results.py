@@ -88,7 +88,10 @@ def test_the_manifest_records_the_config_each_lesson_builds(repo_root):
     The refiners' balance band: their entries used to record RefinerConfig's defaults (d_loss_low/high 0.01 / 1.0)
     while `train_gan` ran the schedule on Lesson03Spec's [0.3, 0.6] band (5-round mean, r <= 40); the recorded
     r of every round of all six runs follows from their recorded D losses under that band and no other
-    (test below), so the config now carries the band and the entries record it."""
+    (test below), so the config now carries the band and the entries record it.
+
+    MoGlow's coupling_net came after its four checkpoints were trained, with MLP couplings, the only kind then;
+    their entries record "mlp", and their weights are MLP couplings (checked here)."""
     from course_lib.datasets import FixedDofs, load_stats
     from course_lib.experiments import gmm_rnn, hvrnn, moglow, vae_lstm
 
@@ -107,6 +110,10 @@ def test_the_manifest_records_the_config_each_lesson_builds(repo_root):
     assert len(built) == 6 + 6 + 4 + 7
     for name, config in built.items():
         assert manifest[name]["config"] == _config_dict(config), name
+    for name in moglow.MODELS:  # sha256-verified, weights_only; a strict load of the recorded kind of coupling
+        model = moglow.load_model(name, repo_root / "checkpoints")
+        recurrent = any(getattr(getattr(step, "coupling", None), "recurrent", False) for step in model.flow)
+        assert recurrent == (manifest[name]["config"]["coupling_net"] == "lstm"), name
 
 
 def test_the_refiners_were_trained_with_the_recorded_balance_band(repo_root):
