@@ -54,7 +54,8 @@ LR = 1e-3  # the paper: 1e-4 with a Noam schedule over 80k steps; ours is a shor
 LR_DECAY_FROM = 0.6
 LR_FLOOR = 0.01
 GRAD_CLIP = 5.0  # StyleGestures' max_grad_clip
-ONE_BODY = False  # every clip on the canonical skeleton (the paper's data were retargeted to one skeleton)
+ONE_BODY = False  # the subjects' own bodies; True puts every clip on the canonical skeleton, as the paper's data
+# were retargeted to one (study moglow_dropout_history: on one body the feet slide as much)
 EVAL_SEEDS = 3  # generation seeds of the distribution scores
 MIN_DISTRIBUTION_CLIPS = 20  # FID / C2ST need at least this many held-out clips
 BLOW_UP = 20.0  # |standardised pose value| beyond this (20 sd) = a sample that exploded
