@@ -49,7 +49,10 @@ def _study(name: str):
     return mod
 
 
-def stepping(model, data, seed: int = 0, n: int = 32) -> tuple[float, int]:
+STANDING_SAMPLES = 32
+
+
+def stepping(model, data, seed: int = 0, n: int = STANDING_SAMPLES) -> tuple[float, int]:
     """-> the feet's stepping speed (m/s) of n 10-s samples told to stand, over those that did not blow up
     (`experiments.moglow.exploded`), and how many blew up."""
     frames = E.TAU + int(10 * E.FPS)
@@ -112,7 +115,8 @@ def main() -> None:
     # the pretrained no-dropout model reads the course's (many-body) standardisation
     (speed, blew_up), (speed_nodrop, _) = stepping(model, data), stepping(
         E.load_model("moglow_nodrop"), E.load_data("full") if args.one_body else data)
-    out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "samples": 32, "exploded": blew_up,
+    out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "samples": STANDING_SAMPLES,
+                           "exploded": blew_up,
                            "ratio": None if speed is None else speed / speed_nodrop}
     out["seconds"] = time.perf_counter() - t0
     write_study_result(args.out, out)
