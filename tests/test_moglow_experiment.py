@@ -172,6 +172,23 @@ def test_train_model_sets_the_decayed_learning_rate(data):
     assert hist.lr[-1] == pytest.approx(E.LR * E.LR_FLOOR)
 
 
+def test_train_resumable_continued_from_its_state_file_is_the_same_run(data, tmp_path):
+    whole, step = E.train_resumable("moglow", data, steps=6, state=tmp_path / "whole.pt", chunk=3)
+    assert step == 6
+    _, step = E.train_resumable("moglow", data, steps=6, state=tmp_path / "parts.pt", until=3, chunk=3)
+    assert step == 3
+    parts, step = E.train_resumable("moglow", data, steps=6, state=tmp_path / "parts.pt", chunk=3)  # a new sitting
+    assert step == 6
+    for (k, a), b in zip(whole.state_dict().items(), parts.state_dict().values(), strict=True):
+        assert torch.equal(a, b), k
+    saved = torch.load(tmp_path / "parts.pt", weights_only=True)
+    assert saved["optimizer"]["param_groups"][0]["lr"] == pytest.approx(E.LR * E.lr_factor(6, 6))
+    with pytest.raises(ValueError, match="holds the run"):  # another recipe's state is refused by name
+        E.train_resumable("moglow", data, steps=12, state=tmp_path / "parts.pt", chunk=3)
+    with pytest.raises(ValueError, match="multiple of chunk"):
+        E.train_resumable("moglow", data, steps=6, state=tmp_path / "new.pt", until=4, chunk=3)
+
+
 def test_noisy_mocap_zero_noise_is_the_mocap_and_noise_shakes(data, monkeypatch):
     """Known answers of lesson 06's noise study: sd 0 scores the decoded mocap itself (its skate and jitter);
     i.i.d. frame noise raises the jitter several-fold and the skate, and so does the shaped noise of the same

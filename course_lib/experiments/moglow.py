@@ -205,6 +205,56 @@ def train_model(name: str, data: MoGlowData, steps: int = STEPS, seed: int = 0, 
     return model.eval(), hist
 
 
+def train_resumable(name: str, data: MoGlowData, steps: int, state: Path, until: int | None = None,
+                    chunk: int = 10_000, seed: int = 0, progress: bool = False):
+    """Train like `train_model` (the LR schedule of `lr_factor` over all `steps`) in chunks of `chunk` steps,
+    saving weights, optimiser state and step to `state` after each, so that a run longer than one sitting
+    continues where it stopped: -> (model, step reached).  Stops at `until` (a multiple of `chunk`; default
+    `steps`).  Chunk k draws its batches and dropout masks from seed (seed, k), so a resumed run is the same
+    run.  `state` must be this variant's (its name, steps, chunk and seed are checked)."""
+    from course_lib.models.moglow import MoGlow
+    from course_lib.training import fit, seed_everything
+
+    until = steps if until is None else until
+    if not 0 < until <= steps or until % chunk and until != steps:
+        raise ValueError(f"train_resumable: until={until} must be a multiple of chunk={chunk} in (0, {steps}]")
+    run = {"name": name, "steps": steps, "chunk": chunk, "seed": seed, "train_windows": len(data.train["poses"])}
+    seed_everything(seed)
+    model, opt_state, done = MoGlow(config_for(name, data.pose_dim)), None, 0
+    state = Path(state)
+    if state.exists():
+        saved = torch.load(state, weights_only=True)
+        if saved["run"] != run:
+            raise ValueError(f"train_resumable: {state} holds the run {saved['run']}, not {run}; "
+                             "give another state path or delete that file")
+        model.load_state_dict(saved["model"])
+        opt_state, done = saved["optimizer"], saved["step"]
+    while done < until:
+        n = min(chunk, steps - done)
+        k = done // chunk
+
+        def schedule(info, offset=done):  # after global step offset + info.step: set the next one's LR
+            for group in info.optimizer.param_groups:
+                group["lr"] = LR * lr_factor(offset + info.step, steps)
+
+        seed_everything(seed * 1_000_003 + k)
+        for_opt = {"optimizer_state": opt_state} if opt_state is not None else {}
+        captured = {}
+
+        def keep(info, schedule=schedule):
+            schedule(info)
+            captured["opt"] = info.optimizer
+
+        fit(model, batches(data.train, BATCH, seed * 1_000_003 + k), steps=n, lr=LR * lr_factor(done, steps),
+            grad_clip=GRAD_CLIP, progress=progress, desc=f"{name} {done}-{done + n}", callback=keep, **for_opt)
+        done += n
+        opt_state = captured["opt"].state_dict()
+        tmp = state.with_suffix(".tmp")
+        torch.save({"run": run, "model": model.state_dict(), "optimizer": opt_state, "step": done}, tmp)
+        tmp.replace(state)
+    return model.eval(), done
+
+
 def load_model(name: str, checkpoints: Path = CHECKPOINTS):
     from course_lib.models.moglow import MoGlow, MoGlowConfig
     from course_lib.training import load_checkpoint

@@ -84,19 +84,28 @@ def main() -> None:
                         help="each coupling's NN: an MLP (the course's) or an LSTM over the frames (the authors' code)")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    ht, tf = _study("moglow_history_temperature"), _study("moglow_teacher_forced")
     t0 = time.perf_counter()
     data = E.load_data("full", one_body=args.one_body, extra_clips=args.extra_clips)
     E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": args.history == "scaled",
                           "coupling_net": args.coupling}
     model, hist = E.train_model("moglow", data, args.steps, seed=0)
-    train_s = time.perf_counter() - t0
-    starts = [root_start(m) for m in data.test_clips]
-    p, c = data.test["poses"], data.test["controls"]
     out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": args.history == "scaled",
            "steps": args.steps, "one_body": args.one_body, "extra_clips": args.extra_clips,
-           "train_windows": len(data.train["poses"]), "coupling_net": args.coupling, "train_seconds": train_s,
-           "nll_per_frame": E.nll_per_frame(model, data.test),
+           "train_windows": len(data.train["poses"]), "coupling_net": args.coupling,
+           "train_seconds": time.perf_counter() - t0, **measure(model, data, args.one_body)}
+    out["seconds"] = time.perf_counter() - t0
+    write_study_result(args.out, out)
+    print(out)
+
+
+def measure(model, data, one_body: bool = False) -> dict:
+    """The study's measures of one trained model: held-out NLL, free-running skate and jitter at T = 1, 0.8 and 0
+    beside mocap's, teacher-forced skate (MLP couplings), and the zero-control stepping against the pretrained
+    no-dropout model's."""
+    ht, tf = _study("moglow_history_temperature"), _study("moglow_teacher_forced")
+    starts = [root_start(m) for m in data.test_clips]
+    p, c = data.test["poses"], data.test["controls"]
+    out = {"nll_per_frame": E.nll_per_frame(model, data.test),
            "nll_per_frame_median_window": float(window_nll(model, data.test).median()),
            "mocap": ht.scores(data, p, c, starts), "free_running": {}}
     for temp in (1.0, 0.8):
@@ -106,7 +115,7 @@ def main() -> None:
     skel = data.test_clips[0].skeleton
     toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
     mocap = data.positions(p, c, starts)
-    if args.coupling == "mlp":  # one_step's parallel inverse would feed a recurrent coupling sampled, not mocap, frames
+    if model.config.coupling_net == "mlp":  # one_step's parallel inverse would feed a recurrent coupling sampled, not mocap, frames
         out["teacher_forced_skate"] = {f"T={t}": tf.pair_skate(mocap, data.positions(tf.one_step(model, p, c, t), c,
                                                                                      starts), toes) for t in (1.0, 0.0)}
     row = ht.scores(data, *E.generate(model, data, data.test["controls"], 0, 0.0, starts=(p[:, :E.TAU], c[:, :E.TAU])),
@@ -114,13 +123,11 @@ def main() -> None:
     out["free_running"]["T=0.0"] = {**row, "jitter_x_mocap": row["jitter"] / out["mocap"]["jitter"]}
     # the pretrained no-dropout model reads the course's (many-body) standardisation
     (speed, blew_up), (speed_nodrop, _) = stepping(model, data), stepping(
-        E.load_model("moglow_nodrop"), E.load_data("full") if args.one_body else data)
+        E.load_model("moglow_nodrop"), E.load_data("full") if one_body else data)
     out["zero_control"] = {"feet_speed": speed, "nodrop_feet_speed": speed_nodrop, "samples": STANDING_SAMPLES,
                            "exploded": blew_up,
                            "ratio": None if speed is None else speed / speed_nodrop}
-    out["seconds"] = time.perf_counter() - t0
-    write_study_result(args.out, out)
-    print(out)
+    return out
 
 
 if __name__ == "__main__":
