@@ -362,7 +362,16 @@ class VaeLstm(nn.Module):
         return mu + torch.exp(0.5 * logvar) * torch.randn(mu.shape, generator=generator)
 
     @torch.no_grad()
-    def predict(self, x_init: torch.Tensor, control: torch.Tensor) -> torch.Tensor:
+    def predict(self, x_init: torch.Tensor, control: torch.Tensor, per_step: bool = False,
+                generator: torch.Generator | None = None) -> torch.Tensor:
         """Synthesis from initial frames: x_init (N, 4, 66), control (N, T, 3) -> (N, T, 66); z_1 is the
-        posterior mean of the initial frames (Table 1, "VAE-LSTM, 4 initial frames")."""
-        return self.generate(control, self.posterior_z1(x_init[:, : self.config.init_frames], control.shape[1]))
+        posterior mean of the initial frames (Table 1, "VAE-LSTM, 4 initial frames").  Algorithm 1, or with
+        ``per_step`` the z-every-step sampler with z_2, z_3, ... drawn from the prior: the same draws as
+        ``generate(control, generator=g, per_step=True)`` for a generator in the same state, z_1 excepted."""
+        z1 = self.posterior_z1(x_init[:, : self.config.init_frames], control.shape[1])
+        if not per_step:
+            return self.generate(control, z1)
+        h_c = self.encode_control(control)
+        z = torch.randn(*h_c.shape[:2], self.config.units, generator=generator)  # generate's per-step draws
+        z[:, 0] = z1  # the first pooled step's latent from the 4 frames, the rest from the prior
+        return self.decode(self.run_decoder(h_c, z))

@@ -37,7 +37,9 @@ def checks_with(res: dict, sampler: str) -> dict:
 
     r = copy.deepcopy(res)
     if sampler != V.SAMPLER:
-        r["table1"]["VAE-LSTM (prior sample)"] = r["table1"][f"VAE-LSTM (prior, {V.SAMPLERS[sampler]})"]
+        for table in ("table1", "table2"):
+            r[table]["VAE-LSTM"] = r[table][f"VAE-LSTM (4 frames, {V.SAMPLERS[sampler]})"]
+            r[table]["VAE-LSTM (prior sample)"] = r[table][f"VAE-LSTM (prior, {V.SAMPLERS[sampler]})"]
         r["latent"]["zero_z_change_m"] = r["latent"]["zero_z_prior_change_m"][sampler]
     r["prior_diversity"]["sampler"] = sampler
     return {k: list(v) for k, v in V.must_show(r).items()}
