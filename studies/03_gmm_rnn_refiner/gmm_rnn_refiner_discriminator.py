@@ -1,11 +1,12 @@
 """Lesson 03 study: why does D let the refiner's sliding feet through?
 
-    OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator.py --out studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator_results.json
+    ATEN_CPU_CAPABILITY=avx2 OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator.py --out studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator_results.json
 
 gmm_rnn_refiner_skate found that R's root and leg changes make the RNN's planted toes slide, although D sees the
 end effectors' velocities (eq. 12).  D is not saved with the checkpoints, so this study retrains GAN1 and GAN2 of
 refiner seed 0 exactly as `python -m course_lib.reproduce gmm_rnn` does (the same pool, seed and schedule; it
-checks that R's weights equal the shipped checkpoint's, so the D it reads is the one that trained the shipped R).
+checks that R's weights equal the shipped checkpoint's, so the D it reads is the one that trained the shipped R;
+the refiners were trained on AVX2 kernels, hence ATEN_CPU_CAPABILITY=avx2 on a machine with AVX-512).
 Then it asks D, on 120 held-out mocap windows and on the RNN's and R's windows (the pool's, as in training):
 
 - how real it finds each (mean probability), and
