@@ -1,12 +1,13 @@
 """Lesson 03 study: why does D let the refiner's sliding feet through?
 
-    ATEN_CPU_CAPABILITY=avx2 OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator.py --out studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator_results.json
+    OMP_NUM_THREADS=1 python studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator.py --out studies/03_gmm_rnn_refiner/gmm_rnn_refiner_discriminator_results.json
 
 gmm_rnn_refiner_skate found that R's root and leg changes make the RNN's planted toes slide, although D sees the
 end effectors' velocities (eq. 12).  D is not saved with the checkpoints, so this study retrains GAN1 and GAN2 of
-refiner seed 0 exactly as `python -m course_lib.reproduce gmm_rnn` does (the same pool, seed and schedule; it
-checks that R's weights equal the shipped checkpoint's, so the D it reads is the one that trained the shipped R;
-the refiners were trained on AVX2 kernels, hence ATEN_CPU_CAPABILITY=avx2 on a machine with AVX-512).
+refiner seed 0 with the recipe of `python -m course_lib.reproduce gmm_rnn` (the same pool, seed and schedule).  It
+records whether R's weights equal the shipped checkpoint's (they need not: the shipped refiners were trained on
+AVX2 kernels and an RNN pool sampled under joint limits 2.6e-14 apart), and scores the shipped R beside the
+retrained one on the same windows: the toes' speed where they are planted, computed from D's own input.
 Then it asks D, on 120 held-out mocap windows and on the RNN's and R's windows (the pool's, as in training):
 
 - how real it finds each (mean probability), and
@@ -39,6 +40,17 @@ def dragged(features: torch.Tensor, stats, speed: float, fps: float) -> torch.Te
 
 
 @torch.no_grad()
+def toe_slide(refiner, features: torch.Tensor, offsets, height: float = 0.05) -> float:
+    """Mean horizontal toe speed (m/s) over the frames where a toe is below `height` m, from D's input: the
+    end effectors' floor-frame positions and velocities (eq. 12)."""
+    p, v = (t.unflatten(-1, (-1, 3)) for t in refiner.end_effectors(features, offsets))  # (N, T, E, 3)
+    toes = [list(refiner.skeleton.end_effectors).index(refiner.skeleton.index(n))
+            for n in ("LeftToeBase", "RightToeBase")]
+    low = p[..., toes, 1] < height
+    return float(v[..., toes, :][..., [0, 2]].norm(dim=-1)[low].mean())
+
+
+@torch.no_grad()
 def realness(refiner, disc, features: torch.Tensor, offsets) -> float:
     """Mean probability D gives windows (N, T, D) of being real (D's input as in training, each window's offsets)."""
     return float(disc(refiner.discriminator_input(features, offsets)).mean())
@@ -65,10 +77,19 @@ def main() -> None:
                                                      shipped[name].state_dict().values(), strict=True))
         with torch.no_grad():
             refined = refiner(rnn_x, rnn_off)
+        with torch.no_grad():
+            shipped_refined = shipped[name](rnn_x, rnn_off)
         row = {"same_weights_as_shipped": same,
+               "toe_slide_m_per_s": {"mocap": toe_slide(refiner, real_x, real_off),
+                                     "RNN": toe_slide(refiner, rnn_x, rnn_off),
+                                     "R(RNN)": toe_slide(refiner, refined, rnn_off),
+                                     "shipped R(RNN)": toe_slide(refiner, shipped_refined, rnn_off),
+                                     **{f"mocap dragged {v}": toe_slide(refiner, dragged(real_x, stats, v, spec.fps),
+                                                                        real_off) for v in DRAGS}},
                "p_real": {"mocap": realness(refiner, disc, real_x, real_off),
                           "RNN": realness(refiner, disc, rnn_x, rnn_off),
-                          "R(RNN)": realness(refiner, disc, refined, rnn_off)},
+                          "R(RNN)": realness(refiner, disc, refined, rnn_off),
+                          "shipped R(RNN)": realness(refiner, disc, shipped_refined, rnn_off)},
                "p_real_mocap_dragged": {str(v): realness(refiner, disc, dragged(real_x, stats, v, spec.fps), real_off)
                                         for v in DRAGS},
                "p_real_rnn_dragged": {str(v): realness(refiner, disc, dragged(rnn_x, stats, v, spec.fps), rnn_off)
