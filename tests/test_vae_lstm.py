@@ -242,6 +242,21 @@ def test_predict_per_step_is_the_prior_samplers_draws_with_z1_from_the_initial_f
     torch.testing.assert_close(m.predict(x[:, :4], control), m.generate(control, m.posterior_z1(x[:, :4], 32)))
 
 
+def test_z1_canvas_puts_z1_beside_every_canvas_column_so_algorithm1_keeps_it():
+    """z1_canvas: m_c(t) = [c(t) || z_1] in training (z_1 the first step's latent) and in Algorithm 1, so z_1 reaches
+    the last frames, which the recursion alone forgets; off (the paper's), the canvas is the cell states alone."""
+    torch.manual_seed(8)
+    m = VaeLstm(tiny(z1_canvas=True)).eval()
+    control = torch.randn(2, 32, 3)
+    h_c, z = m.encode_control(control), torch.randn(2, 8, 8)
+    canvas = m.run_decoder(h_c, z)
+    assert canvas.shape == (2, 16, 8)
+    torch.testing.assert_close(canvas[:, 8:], z[:, 0, :, None].expand(-1, -1, 8))
+    a, b = m.generate(control, torch.randn(2, 8)), m.generate(control, torch.zeros(2, 8))
+    assert (a[:, -8:] - b[:, -8:]).abs().max() > 1e-3
+    assert VaeLstm(tiny()).run_decoder(h_c, z).shape == (2, 8, 8)
+
+
 def test_latent_diagnostics_known_answers():
     """A model whose inference net outputs mu = 0, logvar = 0 has KL 0 in every dimension; with W_c = 0 neither
     z_t nor z_1 reaches the canvas, so zeroing z moves nothing; with W_c restored it does."""

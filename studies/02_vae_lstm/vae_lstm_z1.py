@@ -6,7 +6,11 @@ step is not charged) -- and each model is scored as the lesson's is: Tables 1-2 
 pretrained baselines), both prior samplers beside the data's matched-control spread, the latent diagnostics, and
 the course's targets with either sampler as the lesson's.  The pretrained checkpoint is scored the same way.
 
-    python studies/02_vae_lstm/vae_lstm_z1.py --out studies/02_vae_lstm/vae_lstm_z1_results.json [--smoke]
+    python studies/02_vae_lstm/vae_lstm_z1.py --out studies/02_vae_lstm/vae_lstm_z1_results.json --only kl_annealing free_bits
+    python studies/02_vae_lstm/vae_lstm_z1.py --out studies/02_vae_lstm/vae_lstm_z1_canvas_results.json --only z1_canvas
+
+The third remedy is the canvas conditioned on z_1 (`VaeLstmConfig.z1_canvas`: every canvas column carries z_1 beside
+the cell state, so the decoder sees z_1 at every step, which the recursion alone forgets); it is ours, not the paper's.
 
 It writes no checkpoint: checkpoints/ come from `python -m course_lib.reproduce vae_lstm`.
 """
@@ -28,6 +32,7 @@ STEPS = 2000  # the lesson's recipe (experiments.vae_lstm.lesson02_models)
 VARIANTS = {  # VaeLstmConfig.cpu overrides
     "kl_annealing": {"kl_warmup_steps": STEPS // 2},
     "free_bits": {"free_bits": 0.5},
+    "z1_canvas": {"z1_canvas": True},
 }
 
 
