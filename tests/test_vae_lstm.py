@@ -227,6 +227,36 @@ def test_per_step_prior_uses_training_branch():
         m.generate(control, z1=torch.zeros(2, 8), per_step=True)
 
 
+
+def test_predict_per_step_is_the_prior_samplers_draws_with_z1_from_the_initial_frames():
+    """predict(per_step=True): z_1 the 4 frames' posterior mean, z_2.. the prior draws generate(per_step) makes."""
+    torch.manual_seed(8)
+    m = VaeLstm(tiny()).eval()
+    x, control = torch.randn(2, 32, 66), torch.randn(2, 32, 3)
+    out = m.predict(x[:, :4], control, per_step=True, generator=torch.Generator().manual_seed(0))
+    z = torch.randn(2, 8, 8, generator=torch.Generator().manual_seed(0))
+    z[:, 0] = m.posterior_z1(x[:, :4], 32)
+    torch.testing.assert_close(out, m.decode(m.run_decoder(m.encode_control(control), z)))
+    prior = m.generate(control, generator=torch.Generator().manual_seed(0), per_step=True)
+    assert not torch.allclose(out[:, :4], prior[:, :4])  # the first pooled step differs: it reads the frames
+    torch.testing.assert_close(m.predict(x[:, :4], control), m.generate(control, m.posterior_z1(x[:, :4], 32)))
+
+
+def test_z1_canvas_puts_z1_beside_every_canvas_column_so_algorithm1_keeps_it():
+    """z1_canvas: m_c(t) = [c(t) || z_1] in training (z_1 the first step's latent) and in Algorithm 1, so z_1 reaches
+    the last frames, which the recursion alone forgets; off (the paper's), the canvas is the cell states alone."""
+    torch.manual_seed(8)
+    m = VaeLstm(tiny(z1_canvas=True)).eval()
+    control = torch.randn(2, 32, 3)
+    h_c, z = m.encode_control(control), torch.randn(2, 8, 8)
+    canvas = m.run_decoder(h_c, z)
+    assert canvas.shape == (2, 16, 8)
+    torch.testing.assert_close(canvas[:, 8:], z[:, 0, :, None].expand(-1, -1, 8))
+    a, b = m.generate(control, torch.randn(2, 8)), m.generate(control, torch.zeros(2, 8))
+    assert (a[:, -8:] - b[:, -8:]).abs().max() > 1e-3
+    assert VaeLstm(tiny()).run_decoder(h_c, z).shape == (2, 8, 8)
+
+
 def test_latent_diagnostics_known_answers():
     """A model whose inference net outputs mu = 0, logvar = 0 has KL 0 in every dimension; with W_c = 0 neither
     z_t nor z_1 reaches the canvas, so zeroing z moves nothing; with W_c restored it does."""
@@ -330,20 +360,23 @@ def test_posterior_head_is_linear_on_the_pooled_features():
 
 def test_table1_uses_the_models_own_root_and_samplers():
     """Table 1's VAE-LSTM rows keep the model's decoded control (its own root), Table 2's carry the given control;
-    the prior row is the lesson's sampler; zeroing z is what sample_prior(zero=True) decodes."""
+    the prior row is the lesson's sampler, and the 4-frame row the same sampler with z_1 from the 4 frames and
+    the prior row's draws after it; zeroing z is what sample_prior(zero=True) decodes."""
     from course_lib.experiments import vae_lstm as R
 
     torch.manual_seed(4)
     m = VaeLstm(tiny(latent_dim=8)).eval()
     x = torch.randn(3, 32, 66)
     preds = R.lesson02_predictions({"vae_lstm": m}, x, seed=0)
-    own = m.predict(x[:, :4], x[..., -3:])
+    assert R.SAMPLER == "per_step"  # the lesson's sampler; Algorithm 1 is the other
+    own = m.predict(x[:, :4], x[..., -3:], per_step=True, generator=torch.Generator().manual_seed(0))
     torch.testing.assert_close(preds["table1"]["VAE-LSTM"], own)
+    other = "algorithm1"
+    torch.testing.assert_close(preds["table1"]["VAE-LSTM (4 frames, Algorithm 1)"], m.predict(x[:, :4], x[..., -3:]))
     torch.testing.assert_close(preds["table2"]["VAE-LSTM"][..., -3:], x[..., -3:])
     assert not torch.allclose(own[..., -3:], x[..., -3:])
     ours = R.sample_prior(m, x[..., -3:], R.SAMPLER, torch.Generator().manual_seed(0))
     torch.testing.assert_close(preds["table1"]["VAE-LSTM (prior sample)"], ours)
-    other = next(k for k in R.SAMPLERS if k != R.SAMPLER)
     assert f"VAE-LSTM (prior, {R.SAMPLERS[other]})" in preds["table1"]
     h_c = m.encode_control(x[..., -3:])
     zero = m.decode(m.run_decoder(h_c, torch.zeros(3, 8, 8)))

@@ -233,22 +233,19 @@ def train_resumable(name: str, data: MoGlowData, steps: int, state: Path, until:
         n = min(chunk, steps - done)
         k = done // chunk
 
-        def schedule(info, offset=done):  # after global step offset + info.step: set the next one's LR
+        kept = {}
+
+        def schedule(info, offset=done, kept=kept):  # after global step offset + info.step: set the next LR
             for group in info.optimizer.param_groups:
                 group["lr"] = LR * lr_factor(offset + info.step, steps)
+            kept["optimizer"] = info.optimizer
 
         seed_everything(seed * 1_000_003 + k)
-        for_opt = {"optimizer_state": opt_state} if opt_state is not None else {}
-        captured = {}
-
-        def keep(info, schedule=schedule):
-            schedule(info)
-            captured["opt"] = info.optimizer
-
         fit(model, batches(data.train, BATCH, seed * 1_000_003 + k), steps=n, lr=LR * lr_factor(done, steps),
-            grad_clip=GRAD_CLIP, progress=progress, desc=f"{name} {done}-{done + n}", callback=keep, **for_opt)
+            grad_clip=GRAD_CLIP, progress=progress, desc=f"{name} {done}-{done + n}", callback=schedule,
+            optimizer_state=opt_state)
         done += n
-        opt_state = captured["opt"].state_dict()
+        opt_state = kept["optimizer"].state_dict()
         tmp = state.with_suffix(".tmp")
         torch.save({"run": run, "model": model.state_dict(), "optimizer": opt_state, "step": done}, tmp)
         tmp.replace(state)

@@ -171,8 +171,10 @@ def lesson02_predictions(models: dict, x: torch.Tensor, seed: int = 0) -> dict[s
 
     Table 1: baselines from 60 initial frames, own control; VAE-LSTM from 4 frames / the prior given the
     ground-truth control, its root from its own decoded control channels.  Table 2: everyone from 4 initial
-    frames with the ground-truth control.  "(prior sample)" is the lesson's sampler (``SAMPLER``); the other
-    sampler's row is labelled by its name.
+    frames with the ground-truth control.  The unlabelled VAE-LSTM row and "(prior sample)" are the lesson's
+    sampler (``SAMPLER``); the other sampler's rows are labelled by its name.  With z_t every step the 4-frame
+    row takes z_1 from the 4 frames' posterior and the same prior draws as the prior row for z_2, z_3, ...
+    (common random numbers): the two rows differ by what the 4 frames tell, not by the draws.
     """
     from course_lib.models.vae_lstm import VaeLstm
 
@@ -182,10 +184,13 @@ def lesson02_predictions(models: dict, x: torch.Tensor, seed: int = 0) -> dict[s
     for name, model in models.items():
         label = specs[name][2].label
         if isinstance(model, VaeLstm):
-            rows = {label: model.predict(x[:, :4], control)}
+            rows = {}
             for sampler in (SAMPLER, *(k for k in SAMPLERS if k != SAMPLER)):  # the lesson's sampler draws first
-                key = " (prior sample)" if sampler == SAMPLER else f" (prior, {SAMPLERS[sampler]})"
-                rows[label + key] = sample_prior(model, control, sampler, gen)
+                four, prior = ("", " (prior sample)") if sampler == SAMPLER else (
+                    f" (4 frames, {SAMPLERS[sampler]})", f" (prior, {SAMPLERS[sampler]})")
+                same_draws = torch.Generator().set_state(gen.get_state())
+                rows[label + four] = model.predict(x[:, :4], control, sampler == "per_step", same_draws)
+                rows[label + prior] = sample_prior(model, control, sampler, gen)
             for key, feats in rows.items():
                 t1[key], t2[key] = feats, with_control(feats, control)  # Table 1: the model's own root
         else:

@@ -88,6 +88,7 @@ class VaeLstmConfig:
     generation_weight: float = 0.0  # weight of Algorithm 1's ELBO added to eq. (5) (0 = the paper's loss)
     kl_warmup_steps: int = 0  # KL annealing: the KL weight grows linearly 0 -> 1 over these steps (0 = off)
     free_bits: float = 0.0  # nats per latent dim and pooled step that the KL does not charge (0 = off)
+    z1_canvas: bool = False  # every canvas column also carries z_1 (m_c(t) = [c(t) || z_1]; ours, off: the paper's)
 
     @property
     def units(self) -> int:
@@ -188,7 +189,7 @@ class VaeLstm(nn.Module):
         self.posterior_head = nn.Linear(2 * c.latent_dim, 2 * c.latent_dim)  # e_t -> (mu_t, log sigma_t^2)
         self.control_encoder = conv_encoder(c.control_dim, c.control_channels, c.control_hidden, c.kernel, c.pool)
         self.cell = ModifiedLstmCell(c.units, c.control_hidden)
-        self.decoder = conv_decoder(c.units, c.dec_channels, c.dim, c.kernel, c.pool)
+        self.decoder = conv_decoder(c.units * (2 if c.z1_canvas else 1), c.dec_channels, c.dim, c.kernel, c.pool)
         # optimiser steps taken (drives the KL annealing); not saved: a schedule only matters in training
         self.register_buffer("num_updates", torch.zeros((), dtype=torch.long), persistent=False)
 
@@ -220,7 +221,7 @@ class VaeLstm(nn.Module):
 
     def run_decoder(self, h_c: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """RNN^dec: h^c (N, T', H) and z (N, T', U) (training: every step) or (N, U) (test: z_1 only)
-        -> motion canvas m_c: (N, U, T') of the cell states c(1..T')."""
+        -> motion canvas m_c: (N, U, T') of the cell states c(1..T') ((N, 2U, T') with z_1 beside each, z1_canvas)."""
         N, Tp, _ = h_c.shape
         c = h_c.new_zeros(N, self.config.units)  # c(0) = 0
         cells = []
@@ -232,7 +233,11 @@ class VaeLstm(nn.Module):
             else:
                 c = self.cell(c, h_c[:, t])  # c(t) = RNN^dec(c(t-1), h^c_t)
             cells.append(c)
-        return torch.stack(cells, dim=-1)  # m_c = [c(1) || ... || c(T')]
+        canvas = torch.stack(cells, dim=-1)  # m_c = [c(1) || ... || c(T')]
+        if self.config.z1_canvas:  # each column also carries z_1, which the recursion alone forgets
+            z1 = z[:, 0] if z.ndim == 3 else z
+            canvas = torch.cat((canvas, z1[..., None].expand(-1, -1, Tp)), 1)
+        return canvas
 
     def decode(self, canvas: torch.Tensor) -> torch.Tensor:
         """m_c: (N, U, T') -> X_hat: (N, T' pool^2, 66) (CNN^dec)."""
@@ -362,7 +367,16 @@ class VaeLstm(nn.Module):
         return mu + torch.exp(0.5 * logvar) * torch.randn(mu.shape, generator=generator)
 
     @torch.no_grad()
-    def predict(self, x_init: torch.Tensor, control: torch.Tensor) -> torch.Tensor:
+    def predict(self, x_init: torch.Tensor, control: torch.Tensor, per_step: bool = False,
+                generator: torch.Generator | None = None) -> torch.Tensor:
         """Synthesis from initial frames: x_init (N, 4, 66), control (N, T, 3) -> (N, T, 66); z_1 is the
-        posterior mean of the initial frames (Table 1, "VAE-LSTM, 4 initial frames")."""
-        return self.generate(control, self.posterior_z1(x_init[:, : self.config.init_frames], control.shape[1]))
+        posterior mean of the initial frames (Table 1, "VAE-LSTM, 4 initial frames").  Algorithm 1, or with
+        ``per_step`` the z-every-step sampler with z_2, z_3, ... drawn from the prior: the same draws as
+        ``generate(control, generator=g, per_step=True)`` for a generator in the same state, z_1 excepted."""
+        z1 = self.posterior_z1(x_init[:, : self.config.init_frames], control.shape[1])
+        if not per_step:
+            return self.generate(control, z1)
+        h_c = self.encode_control(control)
+        z = torch.randn(*h_c.shape[:2], self.config.units, generator=generator)  # generate's per-step draws
+        z[:, 0] = z1  # the first pooled step's latent from the 4 frames, the rest from the prior
+        return self.decode(self.run_decoder(h_c, z))
