@@ -7,6 +7,10 @@ of 32 with more data) 10-s samples told to stand, where the 5000-step model neve
 `moglow_long_run` state file: 32 standing samples per sampling seed (0-2) at T = 1, and at T = 0 for seed 0;
 for each sample that blows up, the first frame beyond 10 sd and beyond 20 sd (the training windows hold 80 frames
 of which 70 are predicted), and the largest value over the first 70 frames; the same for 32 held-out controls.
+The start poses are held-out windows chosen at random (`experiments.moglow.start_frames`), so the control jumps at
+frame tau from the start window's own to the one asked for.  Two more conditions test that jump: the standing
+control reached by a 1-s linear ramp from the start window's last control, and the held-out controls each started
+from its own window's first tau frames (no jump).
 """
 
 import argparse
@@ -56,8 +60,18 @@ def main() -> None:
     out["standing"]["T=0 seed 0"] = onsets(E.generate(model, data, standing, 0, 0.0)[0])
     held = data.test["controls"][:SAMPLES]
     out["held_out_controls"]["T=1 seed 0"] = onsets(E.generate(model, data, held, 0)[0])
+    own = (data.test["poses"][:SAMPLES, :E.TAU], held[:, :E.TAU])
+    out["held_out_controls"]["T=1 seed 0, own start"] = onsets(E.generate(model, data, held, 0, starts=own)[0])
+    out["standing_ramped"] = {}
+    for seed in SEEDS:
+        x0, c0 = E.start_frames(data, SAMPLES, seed)
+        ramp = torch.linspace(0, 1, int(E.FPS) + 1)[None, :, None]  # 1 s from the start's last control to standing
+        ramped = standing.clone()
+        ramped[:, E.TAU:E.TAU + len(ramp[0])] = c0[:, -1:] + ramp * (standing[:, :1] - c0[:, -1:])
+        out["standing_ramped"][f"T=1 seed {seed}"] = onsets(E.generate(model, data, ramped, seed, starts=(x0, c0))[0])
     write_study_result(args.out, out)
-    print({f"{part} {k}": v["exploded"] for part in ("standing", "held_out_controls") for k, v in out[part].items()})
+    print({f"{part} {k}": v["exploded"] for part in ("standing", "standing_ramped", "held_out_controls")
+           for k, v in out[part].items()})
 
 
 if __name__ == "__main__":
