@@ -231,9 +231,7 @@ def train_resumable(name: str, data: MoGlowData, steps: int, state: Path, until:
         opt_state, done = saved["optimizer"], saved["step"]
     while done < until:
         n = min(chunk, steps - done)
-        k = done // chunk
-
-        kept = {}
+        k, kept = done // chunk, {}
 
         def schedule(info, offset=done, kept=kept):  # after global step offset + info.step: set the next LR
             for group in info.optimizer.param_groups:
