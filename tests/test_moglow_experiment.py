@@ -185,6 +185,8 @@ def test_train_resumable_continued_from_its_state_file_is_the_same_run(data, tmp
     assert saved["optimizer"]["param_groups"][0]["lr"] == pytest.approx(E.LR * E.lr_factor(6, 6))
     with pytest.raises(ValueError, match="holds the run"):  # another recipe's state is refused by name
         E.train_resumable("moglow", data, steps=12, state=tmp_path / "parts.pt", chunk=3)
+    with pytest.raises(ValueError, match="holds the run"):  # so is another config's under the same name
+        E.train_resumable("moglow_nodrop", data, steps=6, state=tmp_path / "parts.pt", chunk=3)
     with pytest.raises(ValueError, match="multiple of chunk"):
         E.train_resumable("moglow", data, steps=6, state=tmp_path / "new.pt", until=4, chunk=3)
 

@@ -211,16 +211,18 @@ def train_resumable(name: str, data: MoGlowData, steps: int, state: Path, until:
     saving weights, optimiser state and step to `state` after each, so that a run longer than one sitting
     continues where it stopped: -> (model, step reached).  Stops at `until` (a multiple of `chunk`; default
     `steps`).  Chunk k draws its batches and dropout masks from seed (seed, k), so a resumed run is the same
-    run.  `state` must be this variant's (its name, steps, chunk and seed are checked)."""
+    run.  `state` must be this variant's (its name, config, steps, chunk and seed are checked)."""
     from course_lib.models.moglow import MoGlow
     from course_lib.training import fit, seed_everything
 
     until = steps if until is None else until
     if not 0 < until <= steps or until % chunk and until != steps:
         raise ValueError(f"train_resumable: until={until} must be a multiple of chunk={chunk} in (0, {steps}]")
-    run = {"name": name, "steps": steps, "chunk": chunk, "seed": seed, "train_windows": len(data.train["poses"])}
+    config = config_for(name, data.pose_dim)
+    run = {"name": name, "config": dataclasses.asdict(config), "steps": steps, "chunk": chunk, "seed": seed,
+           "train_windows": len(data.train["poses"])}
     seed_everything(seed)
-    model, opt_state, done = MoGlow(config_for(name, data.pose_dim)), None, 0
+    model, opt_state, done = MoGlow(config), None, 0
     state = Path(state)
     if state.exists():
         saved = torch.load(state, weights_only=True)

@@ -8,7 +8,9 @@ that line at a third point: the same recipe, the LR schedule over its own steps,
 clips (at 20000 steps they cured the overfitting and left the skate as it was).  Training is resumable
 (`experiments.moglow.train_resumable`): the state file keeps weights, optimiser and step after every 10000 steps,
 and the same command continues a run that stopped.  Nothing is written to checkpoints/.  The measures are
-moglow_dropout_history's (`measure`).
+moglow_dropout_history's (`measure`).  --hidden and --coupling-hidden widen the model (capacity, the next suspect):
+
+    python studies/06_moglow/moglow_long_run.py --steps 60000 --extra-clips 3600 --hidden 256 --coupling-hidden 256 --state runs/moglow_long_h256_60000.pt --out studies/06_moglow/moglow_long_run_h256_60000_results.json
 """
 
 import argparse
@@ -32,7 +34,11 @@ def main() -> None:
     parser.add_argument("--until", type=int, default=None, help="stop (resumably) after this many steps")
     parser.add_argument("--extra-clips", type=int, default=0)
     parser.add_argument("--state", required=True, help="the resumable state file (kept out of checkpoints/)")
+    parser.add_argument("--hidden", type=int, default=None, help="the conditioning LSTM's units (default: the preset's)")
+    parser.add_argument("--coupling-hidden", type=int, default=None, help="the coupling MLPs' units")
     args = parser.parse_args()
+    sizes = {k: v for k, v in (("hidden", args.hidden), ("coupling_hidden", args.coupling_hidden)) if v}
+    E.MODELS["moglow"] = {**E.MODELS["moglow"], **sizes}
     torch.set_num_threads(1)
     spec = importlib.util.spec_from_file_location("moglow_dropout_history", HERE / "moglow_dropout_history.py")
     study = importlib.util.module_from_spec(spec)
@@ -44,7 +50,7 @@ def main() -> None:
     if step < args.steps:
         print(f"stopped at step {step} of {args.steps}: run the same command to continue")
         return
-    out = {"command": "python " + " ".join(sys.argv), "steps": args.steps, "extra_clips": args.extra_clips,
+    out = {"command": "python " + " ".join(sys.argv), "steps": args.steps, "extra_clips": args.extra_clips, **sizes,
            "train_windows": len(data.train["poses"]), "state_sha256": _sha256(Path(args.state)),
            "seconds_this_sitting": time.perf_counter() - t0, **study.measure(model, data)}
     write_study_result(args.out, out)
