@@ -21,6 +21,7 @@ from pathlib import Path
 
 import torch
 
+from course_lib.checksums import sha256_file
 from course_lib.experiments import moglow as E
 from course_lib.results import write_study_result
 
@@ -51,16 +52,10 @@ def main() -> None:
         print(f"stopped at step {step} of {args.steps}: run the same command to continue")
         return
     out = {"command": "python " + " ".join(sys.argv), "steps": args.steps, "extra_clips": args.extra_clips, **sizes,
-           "train_windows": len(data.train["poses"]), "state_sha256": _sha256(Path(args.state)),
+           "train_windows": len(data.train["poses"]), "state_sha256": sha256_file(args.state),
            "seconds_this_sitting": time.perf_counter() - t0, **study.measure(model, data)}
     write_study_result(args.out, out)
     print(out)
-
-
-def _sha256(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 if __name__ == "__main__":

@@ -14,14 +14,13 @@ from its own window's first tau frames (no jump).
 """
 
 import argparse
-import hashlib
-from pathlib import Path
 
 import numpy as np
 import torch
 
+from course_lib.checksums import sha256_file
 from course_lib.experiments import moglow as E
-from course_lib.models.moglow import MoGlow
+from course_lib.models.moglow import MoGlow, MoGlowConfig
 from course_lib.results import write_study_result
 
 SAMPLES = 32
@@ -48,12 +47,13 @@ def main() -> None:
     torch.set_num_threads(1)
     data = E.load_data("full", extra_clips=args.extra_clips)
     saved = torch.load(args.state, weights_only=True)
-    model = MoGlow(E.config_for(saved["run"]["name"], data.pose_dim))
+    run = saved["run"]  # states written since train_resumable checks the config carry it
+    model = MoGlow(MoGlowConfig(**run["config"]) if "config" in run else E.config_for(run["name"], data.pose_dim))
     model.load_state_dict(saved["model"])
     model.eval()
     frames = E.TAU + int(10 * E.FPS)
     standing = E.constant_control(data, SAMPLES, frames)
-    out = {"state_sha256": hashlib.sha256(Path(args.state).read_bytes()).hexdigest(), "run": saved["run"],
+    out = {"state_sha256": sha256_file(args.state), "run": saved["run"],
            "step": saved["step"], "frames_after_tau": frames - E.TAU, "standing": {}, "held_out_controls": {}}
     for seed in SEEDS:
         out["standing"][f"T=1 seed {seed}"] = onsets(E.generate(model, data, standing, seed)[0])
