@@ -12,7 +12,8 @@ Two more runs take the pretrained recipe and change one thing that the paper or 
     python studies/06_moglow/moglow_dropout_history.py --dropout 0.95 --history scaled --coupling lstm --out studies/06_moglow/moglow_dropout_history_coupling_lstm_results.json
 
 --one-body: every clip on the canonical skeleton (the paper's data were retargeted to one skeleton; ours has 45
-bodies, and a pose sampled frame by frame could change the body).  --coupling lstm: each coupling's NN is an LSTM
+bodies, and a pose sampled frame by frame could change the body).  --flow-steps 16: the paper's K = 16 steps of
+flow (the CPU preset has 8).  --coupling lstm: each coupling's NN is an LSTM
 over the frames, as in the authors' code (StyleGestures' glow/models.py), whose state remembers every earlier
 frame's pose features, which history dropout does not hide; ours is an MLP on the shared conditioning.
 Trained four times as long (--steps 20000) the model overfits its 5920 windows; --extra-clips 3600 adds that many
@@ -82,17 +83,20 @@ def main() -> None:
                         help="more generated clips (other subjects) added to the training split only")
     parser.add_argument("--coupling", choices=("mlp", "lstm"), default="mlp",
                         help="each coupling's NN: an MLP (the course's) or an LSTM over the frames (the authors' code)")
+    parser.add_argument("--flow-steps", type=int, default=None,
+                        help="K, the steps of flow (default: the CPU preset's 8; the paper's 16)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     data = E.load_data("full", one_body=args.one_body, extra_clips=args.extra_clips)
     E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": args.history == "scaled",
-                          "coupling_net": args.coupling}
+                          "coupling_net": args.coupling, **({"steps": args.flow_steps} if args.flow_steps else {})}
     model, hist = E.train_model("moglow", data, args.steps, seed=0)
     out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": args.history == "scaled",
            "steps": args.steps, "one_body": args.one_body, "extra_clips": args.extra_clips,
            "train_windows": len(data.train["poses"]), "coupling_net": args.coupling,
-           "train_seconds": time.perf_counter() - t0, **measure(model, data, args.one_body)}
+           "flow_steps": model.config.steps, "train_seconds": time.perf_counter() - t0,
+           **measure(model, data, args.one_body)}
     out["seconds"] = time.perf_counter() - t0
     write_study_result(args.out, out)
     print(out)
