@@ -114,17 +114,23 @@ def measure(model, data, one_body: bool = False) -> dict:
            "mocap": ht.scores(data, p, c, starts), "free_running": {}}
     for temp in (1.0, 0.8):
         row = ht.sample_scores(model, data, starts, temp)
-        out["free_running"][f"T={temp}"] = {**row, "jitter_x_mocap": row["jitter"] / out["mocap"]["jitter"]}
+        out["free_running"][f"T={temp}"] = {**row, "jitter_x_mocap": row.get("jitter", float("nan")) / out["mocap"]["jitter"]}
         print(temp, row, flush=True)
     skel = data.test_clips[0].skeleton
     toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
     mocap = data.positions(p, c, starts)
     if model.config.coupling_net == "mlp":  # one_step's parallel inverse would feed a recurrent coupling sampled, not mocap, frames
-        out["teacher_forced_skate"] = {f"T={t}": tf.pair_skate(mocap, data.positions(tf.one_step(model, p, c, t), c,
-                                                                                     starts), toes) for t in (1.0, 0.0)}
-    row = ht.scores(data, *E.generate(model, data, data.test["controls"], 0, 0.0, starts=(p[:, :E.TAU], c[:, :E.TAU])),
-                    starts)  # z = 0: every frame the flow's mode given its history (no sampling noise)
-    out["free_running"]["T=0.0"] = {**row, "jitter_x_mocap": row["jitter"] / out["mocap"]["jitter"]}
+        out["teacher_forced_skate"], out["teacher_forced_exploded"] = {}, {}
+        for t in (1.0, 0.0):
+            pred = tf.one_step(model, p, c, t)
+            ok = ~E.exploded(pred)  # a step that blows up is counted and left out
+            kept = [s for s, k in zip(starts, ok, strict=True) if k]
+            out["teacher_forced_skate"][f"T={t}"] = tf.pair_skate(mocap[ok.numpy()],
+                                                                  data.positions(pred[ok], c[ok], kept), toes)
+            out["teacher_forced_exploded"][f"T={t}"] = int((~ok).sum())
+    row = ht.kept_scores(data, *E.generate(model, data, data.test["controls"], 0, 0.0, starts=(p[:, :E.TAU], c[:, :E.TAU])),
+                         starts)  # z = 0: every frame the flow's mode given its history (no sampling noise)
+    out["free_running"]["T=0.0"] = {**row, "jitter_x_mocap": row.get("jitter", float("nan")) / out["mocap"]["jitter"]}
     # the pretrained no-dropout model reads the course's (many-body) standardisation
     (speed, blew_up), (speed_nodrop, _) = stepping(model, data), stepping(
         E.load_model("moglow_nodrop"), E.load_data("full") if one_body else data)

@@ -33,11 +33,20 @@ def scores(data, poses, controls, starts) -> dict:
     return {"foot_skate": foot_skate_at_floor(pos, E.FPS, skel), "jitter": jitter(pos, E.FPS, skel)}
 
 
+def kept_scores(data, poses, controls, starts) -> dict:
+    """`scores` of the samples that did not blow up (`experiments.moglow.exploded`), and how many did."""
+    ok = ~E.exploded(poses)
+    kept = [s for s, k in zip(starts, ok, strict=True) if k]
+    return {**(scores(data, poses[ok], controls[ok], kept) if ok.any() else {}), "exploded": int((~ok).sum())}
+
+
 def sample_scores(model, data, starts, temperature: float) -> dict:
+    """Skate and jitter averaged over the sampling seeds (samples that blew up left out), and the blow-ups' total."""
     x0, c0 = data.test["poses"][:, :E.TAU], data.test["controls"][:, :E.TAU]
-    runs = [scores(data, *E.generate(model, data, data.test["controls"], s, temperature, starts=(x0, c0)), starts)
+    runs = [kept_scores(data, *E.generate(model, data, data.test["controls"], s, temperature, starts=(x0, c0)), starts)
             for s in SEEDS]
-    return {k: sum(r[k] for r in runs) / len(runs) for k in runs[0]}
+    out = {k: sum(r[k] for r in runs) / len(runs) for k in ("foot_skate", "jitter") if all(k in r for r in runs)}
+    return {**out, "exploded": sum(r["exploded"] for r in runs)}
 
 
 def main() -> None:

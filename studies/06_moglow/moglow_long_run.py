@@ -8,9 +8,11 @@ that line at a third point: the same recipe, the LR schedule over its own steps,
 clips (at 20000 steps they cured the overfitting and left the skate as it was).  Training is resumable
 (`experiments.moglow.train_resumable`): the state file keeps weights, optimiser and step after every 10000 steps,
 and the same command continues a run that stopped.  Nothing is written to checkpoints/.  The measures are
-moglow_dropout_history's (`measure`).  --hidden and --coupling-hidden widen the model (capacity, the next suspect):
+moglow_dropout_history's (`measure`; a sample that blows up is counted and left out).  --hidden and
+--coupling-hidden widen the model, --flow-steps deepens the flow (capacity, the next suspect):
 
     python studies/06_moglow/moglow_long_run.py --steps 60000 --extra-clips 3600 --hidden 256 --coupling-hidden 256 --state runs/moglow_long_h256_60000.pt --out studies/06_moglow/moglow_long_run_h256_60000_results.json
+    python studies/06_moglow/moglow_long_run.py --steps 20000 --extra-clips 3600 --flow-steps 16 --state runs/moglow_long_k16_20000.pt --out studies/06_moglow/moglow_long_run_k16_20000_results.json
 """
 
 import argparse
@@ -37,8 +39,10 @@ def main() -> None:
     parser.add_argument("--state", required=True, help="the resumable state file (kept out of checkpoints/)")
     parser.add_argument("--hidden", type=int, default=None, help="the conditioning LSTM's units (default: the preset's)")
     parser.add_argument("--coupling-hidden", type=int, default=None, help="the coupling MLPs' units")
+    parser.add_argument("--flow-steps", type=int, default=None, help="K, the steps of flow (the paper's 16)")
     args = parser.parse_args()
-    sizes = {k: v for k, v in (("hidden", args.hidden), ("coupling_hidden", args.coupling_hidden)) if v}
+    sizes = {k: v for k, v in (("hidden", args.hidden), ("coupling_hidden", args.coupling_hidden),
+                               ("steps", args.flow_steps)) if v}
     E.MODELS["moglow"] = {**E.MODELS["moglow"], **sizes}
     torch.set_num_threads(1)
     spec = importlib.util.spec_from_file_location("moglow_dropout_history", HERE / "moglow_dropout_history.py")
@@ -51,7 +55,8 @@ def main() -> None:
     if step < args.steps:
         print(f"stopped at step {step} of {args.steps}: run the same command to continue")
         return
-    out = {"command": "python " + " ".join(sys.argv), "steps": args.steps, "extra_clips": args.extra_clips, **sizes,
+    out = {"command": "python " + " ".join(sys.argv), "steps": args.steps, "extra_clips": args.extra_clips,
+           "hidden": model.config.hidden, "coupling_hidden": model.config.coupling_hidden, "flow_steps": model.config.steps,
            "train_windows": len(data.train["poses"]), "state_sha256": sha256_file(args.state),
            "seconds_this_sitting": time.perf_counter() - t0, **study.measure(model, data)}
     write_study_result(args.out, out)
