@@ -21,7 +21,7 @@ import torch
 
 from course_lib.checksums import sha256_file
 from course_lib.experiments import moglow as E
-from course_lib.models.moglow import MoGlow, MoGlowConfig
+from course_lib.models.moglow import MoGlow
 from course_lib.representations import root_start
 from course_lib.results import write_study_result
 
@@ -52,23 +52,20 @@ def drawn_history(model: MoGlow, seed: int):
     return masked
 
 
-def rule_scores(model, data, rule: str, temperature: float, scores) -> dict:
+def rule_scores(model, data, rule: str, temperature: float, kept_scores) -> dict:
     """Mean skate and jitter over the sampling seeds of the samples that did not blow up, and how many did."""
     x0, c0 = data.test["poses"][:, :E.TAU], data.test["controls"][:, :E.TAU]
     starts = [root_start(m) for m in data.test_clips]
-    runs, exploded = [], 0
+    runs = []
     for seed in SEEDS:
         model.config.history_scale = rule == "scaled"
         vars(model).pop("condition", None)  # the class's own method
         if rule == "drawn":
             model.condition = drawn_history(model, seed)
-        poses, ctl = E.generate(model, data, data.test["controls"], seed, temperature, starts=(x0, c0))
-        ok = ~E.exploded(poses)
-        exploded += int((~ok).sum())
-        if ok.any():
-            runs.append(scores(data, poses[ok], ctl[ok], [s for s, k in zip(starts, ok, strict=True) if k]))
-    row = {k: sum(r[k] for r in runs) / len(runs) for k in runs[0]} if runs else {}
-    return {**row, "exploded": exploded, "samples": len(SEEDS) * len(starts)}
+        runs.append(kept_scores(data, *E.generate(model, data, data.test["controls"], seed, temperature,
+                                                  starts=(x0, c0)), starts))
+    row = {k: sum(r[k] for r in runs) / len(runs) for k in ("foot_skate", "jitter") if all(k in r for r in runs)}
+    return {**row, "exploded": sum(r["exploded"] for r in runs), "samples": len(SEEDS) * len(starts)}
 
 
 def main() -> None:
@@ -81,22 +78,18 @@ def main() -> None:
     t0 = time.perf_counter()
     ht = _study("moglow_history_temperature")
     data = E.load_data("full", extra_clips=args.extra_clips)
-    saved = torch.load(args.state, weights_only=True)
-    run = saved["run"]
-    model = MoGlow(MoGlowConfig(**run["config"]) if "config" in run else E.config_for(run["name"], data.pose_dim))
-    model.load_state_dict(saved["model"])
-    model.eval()
+    model, saved = _study("moglow_standing_blowups").model_from_state(args.state, data.pose_dim)
     starts = [root_start(m) for m in data.test_clips]
     mocap = ht.scores(data, data.test["poses"], data.test["controls"], starts)
     rows = {}
     for rule in RULES:
         for temp in TEMPERATURES:
-            row = rule_scores(model, data, rule, temp, ht.scores)
+            row = rule_scores(model, data, rule, temp, ht.kept_scores)
             if "jitter" in row:
                 row["jitter_x_mocap"] = row["jitter"] / mocap["jitter"]
             rows[f"history {rule}, T={temp}"] = row
             print(rule, temp, row, flush=True)
-    write_study_result(args.out, {"state_sha256": sha256_file(args.state), "run": run, "step": saved["step"],
+    write_study_result(args.out, {"state_sha256": sha256_file(args.state), "run": saved["run"], "step": saved["step"],
                                   "seeds": list(SEEDS), "held_out_clips": len(starts), "mocap": mocap,
                                   "samples": rows, "seconds": time.perf_counter() - t0})
 

@@ -38,6 +38,15 @@ def onsets(poses: torch.Tensor) -> dict:
     return out
 
 
+def model_from_state(state, pose_dim: int) -> tuple[MoGlow, dict]:
+    """A `moglow_long_run` state file -> (its model, in eval mode; the saved dict)."""
+    saved = torch.load(state, weights_only=True)
+    run = saved["run"]  # states written since train_resumable checks the config carry it
+    model = MoGlow(MoGlowConfig(**run["config"]) if "config" in run else E.config_for(run["name"], pose_dim))
+    model.load_state_dict(saved["model"])
+    return model.eval(), saved
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True)
@@ -46,11 +55,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     data = E.load_data("full", extra_clips=args.extra_clips)
-    saved = torch.load(args.state, weights_only=True)
-    run = saved["run"]  # states written since train_resumable checks the config carry it
-    model = MoGlow(MoGlowConfig(**run["config"]) if "config" in run else E.config_for(run["name"], data.pose_dim))
-    model.load_state_dict(saved["model"])
-    model.eval()
+    model, saved = model_from_state(args.state, data.pose_dim)
     frames = E.TAU + int(10 * E.FPS)
     standing = E.constant_control(data, SAMPLES, frames)
     out = {"state_sha256": sha256_file(args.state), "run": saved["run"],
