@@ -12,8 +12,7 @@ Two more runs take the pretrained recipe and change one thing that the paper or 
     python studies/06_moglow/moglow_dropout_history.py --dropout 0.95 --history scaled --coupling lstm --out studies/06_moglow/moglow_dropout_history_coupling_lstm_results.json
 
 --one-body: every clip on the canonical skeleton (the paper's data were retargeted to one skeleton; ours has 45
-bodies, and a pose sampled frame by frame could change the body).  --flow-steps 16: the paper's K = 16 steps of
-flow (the CPU preset has 8).  --coupling lstm: each coupling's NN is an LSTM
+bodies, and a pose sampled frame by frame could change the body).  --coupling lstm: each coupling's NN is an LSTM
 over the frames, as in the authors' code (StyleGestures' glow/models.py), whose state remembers every earlier
 frame's pose features, which history dropout does not hide; ours is an MLP on the shared conditioning.
 Trained four times as long (--steps 20000) the model overfits its 5920 windows; --extra-clips 3600 adds that many
@@ -83,23 +82,25 @@ def main() -> None:
                         help="more generated clips (other subjects) added to the training split only")
     parser.add_argument("--coupling", choices=("mlp", "lstm"), default="mlp",
                         help="each coupling's NN: an MLP (the course's) or an LSTM over the frames (the authors' code)")
-    parser.add_argument("--flow-steps", type=int, default=None,
-                        help="K, the steps of flow (default: the CPU preset's 8; the paper's 16)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     data = E.load_data("full", one_body=args.one_body, extra_clips=args.extra_clips)
     E.MODELS["moglow"] = {"dropout": args.dropout, "history_scale": args.history == "scaled",
-                          "coupling_net": args.coupling, **({"steps": args.flow_steps} if args.flow_steps else {})}
+                          "coupling_net": args.coupling}
     model, hist = E.train_model("moglow", data, args.steps, seed=0)
     out = {"command": "python " + " ".join(sys.argv), "dropout": args.dropout, "history_scale": args.history == "scaled",
            "steps": args.steps, "one_body": args.one_body, "extra_clips": args.extra_clips,
            "train_windows": len(data.train["poses"]), "coupling_net": args.coupling,
-           "flow_steps": model.config.steps, "train_seconds": time.perf_counter() - t0,
-           **measure(model, data, args.one_body)}
+           "train_seconds": time.perf_counter() - t0, **measure(model, data, args.one_body)}
     out["seconds"] = time.perf_counter() - t0
     write_study_result(args.out, out)
     print(out)
+
+
+def with_ratio(row: dict, mocap: dict) -> dict:
+    """A free-running row with its jitter as a multiple of mocap's (NaN when every sample blew up)."""
+    return {**row, "jitter_x_mocap": row.get("jitter", float("nan")) / mocap["jitter"]}
 
 
 def measure(model, data, one_body: bool = False) -> dict:
@@ -114,7 +115,7 @@ def measure(model, data, one_body: bool = False) -> dict:
            "mocap": ht.scores(data, p, c, starts), "free_running": {}}
     for temp in (1.0, 0.8):
         row = ht.sample_scores(model, data, starts, temp)
-        out["free_running"][f"T={temp}"] = {**row, "jitter_x_mocap": row.get("jitter", float("nan")) / out["mocap"]["jitter"]}
+        out["free_running"][f"T={temp}"] = with_ratio(row, out["mocap"])
         print(temp, row, flush=True)
     skel = data.test_clips[0].skeleton
     toes = [skel.index("LeftToeBase"), skel.index("RightToeBase")]
@@ -130,7 +131,7 @@ def measure(model, data, one_body: bool = False) -> dict:
             out["teacher_forced_exploded"][f"T={t}"] = int((~ok).sum())
     row = ht.kept_scores(data, *E.generate(model, data, data.test["controls"], 0, 0.0, starts=(p[:, :E.TAU], c[:, :E.TAU])),
                          starts)  # z = 0: every frame the flow's mode given its history (no sampling noise)
-    out["free_running"]["T=0.0"] = {**row, "jitter_x_mocap": row.get("jitter", float("nan")) / out["mocap"]["jitter"]}
+    out["free_running"]["T=0.0"] = with_ratio(row, out["mocap"])
     # the pretrained no-dropout model reads the course's (many-body) standardisation
     (speed, blew_up), (speed_nodrop, _) = stepping(model, data), stepping(
         E.load_model("moglow_nodrop"), E.load_data("full") if one_body else data)

@@ -11,7 +11,6 @@ and the same command continues a run that stopped.  Nothing is written to checkp
 moglow_dropout_history's (`measure`; a sample that blows up is counted and left out).  --hidden and
 --coupling-hidden widen the model, --flow-steps deepens the flow (capacity, the next suspect):
 
-    python studies/06_moglow/moglow_long_run.py --steps 60000 --extra-clips 3600 --hidden 256 --coupling-hidden 256 --state runs/moglow_long_h256_60000.pt --out studies/06_moglow/moglow_long_run_h256_60000_results.json
     python studies/06_moglow/moglow_long_run.py --steps 20000 --extra-clips 3600 --flow-steps 16 --state runs/moglow_long_k16_20000.pt --out studies/06_moglow/moglow_long_run_k16_20000_results.json
 """
 
